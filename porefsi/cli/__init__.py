@@ -1,0 +1,72 @@
+"""Command line: ``porefsi SUBCOMMAND ...``.
+
+:func:`main` is the only place in porefsi where exceptions become exit codes. Each subcommand
+lives in its own module here and exposes ``register(subparsers)``, which adds its parser and
+sets ``func=run`` where ``run(args) -> int`` may raise :class:`porefsi.errors.PorefsiError`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from porefsi._version import __version__
+from porefsi.errors import PorefsiError
+
+__all__ = ["main", "build_parser"]
+
+#: Subcommand modules, in the order ``porefsi --help`` lists them.
+_MODULES = ("run", "extract", "drainage", "solid")
+
+EXIT_OK = 0
+EXIT_ERROR = 2
+EXIT_INTERRUPTED = 130
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser with every subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog="porefsi",
+        description="Pore-scale hydromechanics: pore networks from rock images, dynamic drainage, "
+        "and the rock deformation it causes (two-way coupled).",
+    )
+    parser.add_argument("--version", action="version", version=f"porefsi {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in _MODULES:
+        try:
+            mod = importlib.import_module(f"porefsi.cli._{name}")
+        except ModuleNotFoundError as exc:  # a subcommand not built yet
+            if exc.name != f"porefsi.cli._{name}":
+                raise
+            continue
+        mod.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code.
+
+    Errors that porefsi raises on purpose print one line ``porefsi: error: ...`` to stderr and
+    return 2; argparse usage errors also return 2.
+    """
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help, --version, usage errors
+        return int(exc.code or 0)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_OK
+    try:
+        return int(args.func(args) or 0)
+    except PorefsiError as exc:
+        print(f"porefsi: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print("porefsi: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
