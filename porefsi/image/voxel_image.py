@@ -75,7 +75,7 @@ class VoxelImage:
         elif ph.max(initial=0) > 1:
             raise InputError(
                 "VoxelImage.phases must hold only 0 (solid) and 1 (pore), got values up to "
-                f"{int(ph.max())}; segment it with porefsi.image.segment(..., threshold=... or pore_value=...)"
+                f"{int(ph.max())}; segment it with porefsi.image.segment(..., threshold=...)"
             )
         ph = np.ascontiguousarray(ph)
         ph.setflags(write=False)

@@ -1,8 +1,8 @@
-"""The abstract second-order system that every time integrator advances.
+r"""The abstract second-order system that every time integrator advances.
 
 Integrators know nothing of porefsi physics: they see a semi-discrete system
 
-.. math:: M \\ddot u + f_{int}(u, t) = f_{ext}(t)
+.. math:: M \ddot u + f_{int}(u, t) = f_{ext}(t)
 
 on ``n_dofs`` free unknowns (Dirichlet constraints are condensed out by whoever builds the
 system; a prescribed boundary motion enters through the ``t`` argument of ``internal_force``).

@@ -1,11 +1,11 @@
-"""Closed-form conduit geometry: hydraulic resistances of the sphere–cylinder–sphere conduit.
+r"""Closed-form conduit geometry: hydraulic resistances of the sphere–cylinder–sphere conduit.
 
 A throat conduit is three segments in series (pore-i part, cylinder, pore-j part). Each segment
 has a *hydraulic resistance factor* ``h`` (1/m³) such that, for a fluid of viscosity ``mu`` in
 that segment, its resistance to volumetric flow is ``mu * h`` (Pa·s/m³). The conduit
 conductance is then
 
-.. math:: g = \\frac{1}{\\mu_i h_i + \\mu_t h_t + \\mu_j h_j}
+.. math:: g = \frac{1}{\mu_i h_i + \mu_t h_t + \mu_j h_j}
 
 which is also how segments holding different fluids combine (in series, never in parallel;
 the seed paper's eq. 2.6 writes a parallel sum, see ``docs/theory.md``).
@@ -33,16 +33,16 @@ def cylinder_resistance(radius, length):
 
 
 def sphere_segment_resistance(pore_radius, throat_radius, length):
-    """Resistance factor of the part of a conduit inside a spherical pore, 1/m³.
+    r"""Resistance factor of the part of a conduit inside a spherical pore, 1/m³.
 
     The segment runs from the pore centre (x = 0) outwards for ``length``. Its cross-section is
     the sphere's, ``A(x) = pi (R^2 - x^2)``, until the sphere narrows to the throat radius at
     ``a = sqrt(R^2 - r_t^2)``; any remainder is a cylinder of the throat radius. For a slowly
-    varying section, Hagen–Poiseuille gives ``h = 8 pi \\int dx / A(x)^2``, whose closed form is
+    varying section, Hagen–Poiseuille gives ``h = 8 pi \int dx / A(x)^2``, whose closed form is
 
-    .. math:: h = \\frac{8}{\\pi}\\left[\\frac{s}{2R^2(R^2-s^2)}
-              + \\frac{1}{4R^3}\\ln\\frac{R+s}{R-s}\\right] + \\frac{8(L-s)}{\\pi r_t^4},
-              \\quad s = \\min(L, a).
+    .. math:: h = \frac{8}{\pi}\left[\frac{s}{2R^2(R^2-s^2)}
+              + \frac{1}{4R^3}\ln\frac{R+s}{R-s}\right] + \frac{8(L-s)}{\pi r_t^4},
+              \quad s = \min(L, a).
 
     Parameters
     ----------
