@@ -1,0 +1,152 @@
+"""Result files a user opens: CSV time series, JSON summary, ParaView ``.pvd`` series, checkpoints.
+
+Every write is atomic (written to a temporary file in the same directory, then renamed), so a run
+killed at any moment leaves either the previous complete file or the new one, never half of one.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["atomic_write_bytes", "atomic_write_text", "write_json", "write_csv", "PvdSeries",
+           "save_checkpoint", "load_checkpoint"]
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file + ``os.replace``)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return p
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write UTF-8 ``text`` to ``path`` atomically."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def _jsonable(v):
+    if isinstance(v, Mapping):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _jsonable(v.tolist())
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, Path):
+        return str(v)
+    return v
+
+
+def write_json(path: str | Path, data: Mapping) -> Path:
+    """Write ``data`` as indented JSON (NaN/inf become null; numpy values become Python)."""
+    return atomic_write_text(path, json.dumps(_jsonable(data), indent=2) + "\n")
+
+
+def write_csv(path: str | Path, columns: Mapping[str, Sequence]) -> Path:
+    """Write equal-length columns as a CSV file with a header row (NaN as empty cells)."""
+    names = list(columns)
+    n = {len(columns[k]) for k in names}
+    if len(n) > 1:
+        raise ValueError(f"columns have different lengths {sorted(n)}")
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(names)
+    for row in zip(*(columns[k] for k in names), strict=True):
+        w.writerow(["" if (isinstance(x, float) and not math.isfinite(x)) else _fmt(x) for x in row])
+    return atomic_write_text(path, buf.getvalue())
+
+
+def _fmt(x):
+    if isinstance(x, (float, np.floating)):
+        return repr(float(x))
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+class PvdSeries:
+    """A ParaView collection (``.pvd``) of time steps, rewritten atomically on every ``add``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.pvd`` file; the data files it lists are given relative to its folder.
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self._entries: list[tuple[float, str]] = []
+
+    def add(self, t: float, file: str | Path) -> None:
+        """Append the data file ``file`` at time ``t`` (s) and rewrite the collection."""
+        rel = os.path.relpath(Path(file), self.path.parent)
+        self._entries.append((float(t), rel))
+        self.write()
+
+    def truncate(self, t_max: float) -> None:
+        """Drop entries later than ``t_max`` (used when a run resumes from a checkpoint)."""
+        self._entries = [e for e in self._entries if e[0] <= t_max]
+        self.write()
+
+    def write(self) -> None:
+        """Write the collection file."""
+        rows = "\n".join(f'    <DataSet timestep="{t!r}" group="" part="0" file="{f}"/>' for t, f in self._entries)
+        text = ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+                f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n")
+        atomic_write_text(self.path, text)
+
+    @classmethod
+    def read(cls, path: str | Path) -> PvdSeries:
+        """Load an existing collection (to continue it)."""
+        s = cls(path)
+        if s.path.is_file():
+            import xml.etree.ElementTree as ET
+
+            for ds in ET.parse(s.path).getroot().iter("DataSet"):
+                s._entries.append((float(ds.get("timestep")), ds.get("file")))
+        return s
+
+    @property
+    def entries(self) -> list[tuple[float, str]]:
+        """(time, relative file) pairs in order."""
+        return list(self._entries)
+
+
+def save_checkpoint(path: str | Path, arrays: Mapping[str, np.ndarray], meta: Mapping) -> Path:
+    """Write arrays and JSON metadata into one ``.npz`` atomically."""
+    buf = io.BytesIO()
+    payload = {k: np.asarray(v) for k, v in arrays.items()}
+    payload["__meta__"] = np.frombuffer(json.dumps(_jsonable(meta)).encode("utf-8"), dtype=np.uint8)
+    np.savez(buf, **payload)
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def load_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
+    """Read a checkpoint written by :func:`save_checkpoint`: (arrays, metadata)."""
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files if k != "__meta__"}
+        meta = json.loads(bytes(z["__meta__"]).decode("utf-8"))
+    return arrays, meta
