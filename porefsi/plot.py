@@ -1,0 +1,189 @@
+"""Figures: matplotlib curves and pyvista off-screen 3-D scenes, saved as PNG.
+
+Everything here consumes plain arrays (no physics) and imports matplotlib / pyvista lazily,
+so ``import porefsi`` stays cheap and headless machines work (Agg backend, off-screen VTK).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["plot_timeseries", "plot_psd", "plot_pc_s", "render_network", "render_solid"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_timeseries(ts: Mapping[str, Sequence[float]], path: str | Path, *, title: str = "") -> Path:
+    """Panels of the coupled run over time: saturation, pressures, forces, deformation, stress, k.
+
+    Parameters
+    ----------
+    ts : mapping of column name -> sequence
+        Needs ``time_s``; plots whichever of ``sw``, ``inlet_pressure_Pa``, ``capillary_pressure_Pa``,
+        ``total_pore_force_N``, ``max_displacement_m``, ``max_von_mises_Pa``, ``permeability_m2``
+        are present.
+    path : str or Path
+        PNG file to write.
+    """
+    plt = _plt()
+    t = np.asarray(ts["time_s"], float)
+    panels = [
+        ("sw", "wetting saturation", 1.0),
+        ("inlet_pressure_Pa", "inlet pressure (kPa)", 1e-3),
+        ("capillary_pressure_Pa", "capillary pressure (kPa)", 1e-3),
+        ("total_pore_force_N", "total pore force (mN)", 1e3),
+        ("max_displacement_m", "max displacement (nm)", 1e9),
+        ("max_von_mises_Pa", "max von Mises (MPa)", 1e-6),
+        ("permeability_m2", "permeability (mD)", 1.0 / 9.869233e-16),
+    ]
+    panels = [p for p in panels if p[0] in ts]
+    ncol = 2
+    nrow = max(1, (len(panels) + 1) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(10, 2.6 * nrow), squeeze=False, sharex=True)
+    for ax, (key, label, scale) in zip(axes.ravel(), panels, strict=False):
+        ax.plot(t, np.asarray(ts[key], float) * scale, "-", lw=1.5)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    for ax in axes.ravel()[len(panels):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel("time (s)")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_psd(radii_at: Sequence[tuple[float, np.ndarray]], path: str | Path, *, bins: int = 25) -> Path:
+    """Pore-size distribution at several times (paper fig. 13): counts vs pore radius (µm)."""
+    plt = _plt()
+    allr = np.concatenate([np.asarray(r, float) for _, r in radii_at]) * 1e6
+    edges = np.linspace(allr.min(), allr.max(), bins + 1) if allr.size else np.linspace(0, 1, bins + 1)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for t, r in radii_at:
+        h, _ = np.histogram(np.asarray(r, float) * 1e6, bins=edges)
+        ax.plot(0.5 * (edges[1:] + edges[:-1]), h, "-o", ms=3, label=f"t = {t:g} s")
+    ax.set_xlabel("pore radius (µm)")
+    ax.set_ylabel("number of pores")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_pc_s(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], path: str | Path) -> Path:
+    """Capillary pressure (kPa) vs wetting saturation for several labelled curves."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for label, (sw, pc) in curves.items():
+        ax.plot(np.asarray(sw), np.asarray(pc) * 1e-3, "-", lw=1.5, label=label)
+    ax.set_xlabel("wetting saturation")
+    ax.set_ylabel("capillary pressure (kPa)")
+    ax.set_xlim(0, 1)
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def _pv():
+    os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
+    import pyvista as pv
+
+    pv.OFF_SCREEN = True
+    return pv
+
+
+def render_network(coords, radii, conns, values, path: str | Path, *, label: str = "", clim=None,
+                   cmap: str = "coolwarm_r", window_size=(900, 700)) -> Path:
+    """Pores as spheres (true radius) and throats as lines, coloured by a per-pore value.
+
+    Parameters
+    ----------
+    coords : ndarray, shape (Np, 3)
+        Pore centres, m (drawn in µm).
+    radii : ndarray, shape (Np,)
+        Pore radii, m.
+    conns : ndarray of int, shape (Nt, 2)
+    values : ndarray, shape (Np,)
+        Colour per pore (e.g. wetting saturation: red = wetting, blue = non-wetting as in the paper).
+    """
+    pv = _pv()
+    c = np.asarray(coords, float) * 1e6
+    pts = pv.PolyData(c)
+    pts["radius"] = np.asarray(radii, float) * 1e6
+    pts[label or "value"] = np.asarray(values, float)
+    glyphs = pts.glyph(geom=pv.Sphere(radius=1.0, theta_resolution=12, phi_resolution=12), scale="radius",
+                       orient=False)
+    conns = np.asarray(conns, np.int64)
+    lines = pv.PolyData(c)
+    if conns.size:
+        lines.lines = np.hstack([np.full((len(conns), 1), 2), conns]).ravel()
+    p = pv.Plotter(off_screen=True, window_size=window_size)
+    p.add_mesh(lines, color="grey", line_width=1)
+    p.add_mesh(glyphs, scalars=label or "value", cmap=cmap, clim=clim, scalar_bar_args={"title": label})
+    p.show_bounds(xtitle="x (um)", ytitle="y (um)", ztitle="z (um)", font_size=10)
+    p.camera_position = "iso"
+    p.screenshot(str(path))
+    p.close()
+    return Path(path)
+
+
+def render_solid(points, tets, values, path: str | Path, *, label: str = "", displacement=None, scale: float = 0.0,
+                 cmap: str = "viridis", clim=None, window_size=(900, 700)) -> Path:
+    """Surface of the tetrahedral solid coloured by a nodal value, optionally warped.
+
+    Parameters
+    ----------
+    points : ndarray, shape (Nn, 3)
+        Node coordinates, m (drawn in µm).
+    tets : ndarray of int, shape (Ne, 4)
+    values : ndarray, shape (Nn,) or (Ne,)
+        Nodal or element values to colour by.
+    displacement : ndarray, shape (Nn, 3), optional
+        Warp the surface by ``scale * displacement`` (displacements are far below a voxel: pick a
+        visible scale, and say so in the caption).
+    """
+    pv = _pv()
+    x = np.asarray(points, float)
+    if displacement is not None and scale:
+        x = x + scale * np.asarray(displacement, float)
+    tets = np.asarray(tets, np.int64)
+    cells = np.hstack([np.full((len(tets), 1), 4), tets]).ravel()
+    grid = pv.UnstructuredGrid(cells, np.full(len(tets), 10, np.uint8), x * 1e6)
+    v = np.asarray(values, float)
+    name = label or "value"
+    if v.shape[0] == len(tets):
+        grid.cell_data[name] = v
+    else:
+        grid.point_data[name] = v
+    try:
+        surf = grid.extract_surface(algorithm="dataset_surface")
+    except TypeError:  # pyvista < 0.47 has no `algorithm`
+        surf = grid.extract_surface()
+    p = pv.Plotter(off_screen=True, window_size=window_size)
+    p.add_mesh(surf, scalars=name, cmap=cmap, clim=clim, scalar_bar_args={"title": label})
+    p.show_bounds(xtitle="x (um)", ytitle="y (um)", ztitle="z (um)", font_size=10)
+    p.camera_position = "iso"
+    p.screenshot(str(path))
+    p.close()
+    return Path(path)
