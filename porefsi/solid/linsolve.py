@@ -1,0 +1,226 @@
+"""Linear solvers for the (condensed, SPD) elasticity systems: AMG-CG, Jacobi-CG, direct.
+
+Each factory ``make(A) -> solve(b) -> x`` follows
+:data:`porefsi.integrators.system.SolverFactory`. Unconverged solves raise
+:class:`~porefsi.errors.ConvergenceError` carrying the residual history.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from porefsi.errors import ConvergenceError, InputError
+
+__all__ = ["pcg", "rigid_body_modes", "AMGSolverFactory", "jacobi_solver_factory", "direct_solver_factory",
+           "SolveInfo"]
+
+
+@dataclasses.dataclass
+class SolveInfo:
+    """Statistics of the last solve: iterations, relative residual history, converged flag."""
+
+    iterations: int = 0
+    history: list = dataclasses.field(default_factory=list)
+    converged: bool = False
+
+
+def pcg(A, b: np.ndarray, M=None, x0: np.ndarray | None = None, rtol: float = 1e-8,
+        maxiter: int | None = None, what: str = "CG") -> tuple[np.ndarray, SolveInfo]:
+    r"""Preconditioned conjugate gradients for SPD ``A``; stop when :math:`\|r\|_2 \le rtol \|b\|_2`.
+
+    Parameters
+    ----------
+    A : sparse matrix or LinearOperator, shape (n, n)
+    b : ndarray, shape (n,)
+    M : callable or LinearOperator, optional
+        Preconditioner application ``z = M r`` (SPD).
+    rtol : float
+        Relative tolerance on the 2-norm of the residual.
+
+    Raises
+    ------
+    ConvergenceError
+        After ``maxiter`` iterations (default ``max(100, n)``) or on a breakdown, with the history.
+    """
+    b = np.asarray(b, dtype=float)
+    n = b.shape[0]
+    maxiter = max(100, n) if maxiter is None else int(maxiter)
+    apply_M = (lambda r: r) if M is None else (M if callable(M) else M.matvec)
+    bnorm = np.linalg.norm(b)
+    info = SolveInfo()
+    if bnorm == 0:
+        info.converged = True
+        return np.zeros(n), info
+    x = np.zeros(n) if x0 is None else np.array(x0, dtype=float)
+    r = b - A @ x
+    z = apply_M(r)
+    p = z.copy()
+    rz = r @ z
+    hist = [np.linalg.norm(r) / bnorm]
+    for it in range(1, maxiter + 1):
+        if hist[-1] <= rtol:
+            info.iterations, info.history, info.converged = it - 1, hist, True
+            return x, info
+        Ap = A @ p
+        pAp = p @ Ap
+        if not pAp > 0:
+            raise ConvergenceError(f"{what} breakdown: p.Ap = {pAp:.3g} <= 0 (matrix not SPD?)", hist)
+        alpha = rz / pAp
+        x += alpha * p
+        r -= alpha * Ap
+        hist.append(np.linalg.norm(r) / bnorm)
+        z = apply_M(r)
+        rz_new = r @ z
+        p *= rz_new / rz
+        p += z
+        rz = rz_new
+    if hist[-1] <= rtol:
+        info.iterations, info.history, info.converged = maxiter, hist, True
+        return x, info
+    raise ConvergenceError(
+        f"{what} did not reach rtol={rtol:g} in {maxiter} iterations (last relative residual "
+        f"{hist[-1]:.3g}); check the constraints remove all rigid-body modes, or use a direct solve",
+        hist,
+    )
+
+
+def rigid_body_modes(points: np.ndarray) -> np.ndarray:
+    """The six rigid-body modes of interleaved 3-D dofs at ``points`` (N, 3): shape (3N, 6).
+
+    Columns: translations x, y, z, then rotations about x, y, z (about the centroid).
+    """
+    x = np.asarray(points, dtype=float) - np.mean(points, axis=0)
+    n = len(x)
+    B = np.zeros((n, 3, 6))
+    for c in range(3):
+        B[:, c, c] = 1.0
+    # omega x r for omega = e_x, e_y, e_z
+    B[:, 1, 3], B[:, 2, 3] = -x[:, 2], x[:, 1]
+    B[:, 0, 4], B[:, 2, 4] = x[:, 2], -x[:, 0]
+    B[:, 0, 5], B[:, 1, 5] = -x[:, 1], x[:, 0]
+    return B.reshape(3 * n, 6)
+
+
+class AMGSolverFactory:
+    """CG preconditioned by pyamg smoothed aggregation with rigid-body modes, with reuse.
+
+    The hierarchy is built on the full-size block (3 x 3 BSR) matrix in which the constrained
+    dofs are eliminated symmetrically (unit diagonal), so aggregation works on nodes; it is
+    applied to the free system by padding with zeros. A hierarchy is reused for later matrices
+    (tangents change little between steps) while CG needs at most ``rebuild_iterations``;
+    otherwise it is rebuilt for the current matrix and the solve repeated.
+
+    Parameters
+    ----------
+    dof_points : ndarray, shape (n_full // 3, 3)
+        Positions of the Lagrange nodes (interleaved dofs), m.
+    free : ndarray of int, shape (n,)
+        Indices of the free dofs in the full numbering.
+    rtol : float
+        CG relative residual tolerance.
+    rebuild_iterations : int
+        Reuse a hierarchy while CG converges within this many iterations.
+    maxiter : int
+        CG iteration cap for one solve.
+    """
+
+    def __init__(self, dof_points: np.ndarray, free: np.ndarray, *, rtol: float = 1e-8,
+                 rebuild_iterations: int = 40, maxiter: int = 1000, max_coarse: int = 300):
+        self.n_full = 3 * len(dof_points)
+        self.free = np.asarray(free, dtype=np.int64)
+        self.B_full = rigid_body_modes(dof_points)
+        self.rtol, self.rebuild_iterations, self.maxiter = float(rtol), int(rebuild_iterations), int(maxiter)
+        self.max_coarse = int(max_coarse)
+        self.ml = None
+        self.n_setups = 0
+        self.last = SolveInfo()
+        self._pad = np.zeros(self.n_full)
+
+    def _padded(self, A: sp.spmatrix) -> sp.bsr_matrix:
+        A = sp.coo_matrix(A)
+        cons = np.setdiff1d(np.arange(self.n_full), self.free)
+        rows = np.concatenate([self.free[A.row], cons])
+        cols = np.concatenate([self.free[A.col], cons])
+        diag = A.diagonal().mean() if A.nnz else 1.0
+        vals = np.concatenate([A.data, np.full(len(cons), diag)])
+        Af = sp.csr_matrix((vals, (rows, cols)), shape=(self.n_full, self.n_full))
+        return Af.tobsr(blocksize=(3, 3))
+
+    def setup(self, A: sp.spmatrix) -> None:
+        """Build the smoothed-aggregation hierarchy for ``A`` (free-dof matrix)."""
+        import pyamg
+
+        Ab = self._padded(A)
+        B = self.B_full.copy()
+        cons = np.setdiff1d(np.arange(self.n_full), self.free)
+        B[cons] = 0.0  # constrained dofs carry no near-null-space component
+        self.ml = pyamg.smoothed_aggregation_solver(
+            Ab, B=B, symmetry="symmetric", strength=("symmetric", {"theta": 0.0}),
+            smooth=("jacobi", {"omega": 4.0 / 3.0}), max_coarse=self.max_coarse,
+        )
+        self._M = self.ml.aspreconditioner(cycle="V")
+        self.n_setups += 1
+
+    def precondition(self, r: np.ndarray) -> np.ndarray:
+        """Apply the AMG V-cycle to a free-dof residual ``r`` (n,)."""
+        pad = np.zeros(self.n_full)
+        pad[self.free] = r
+        return self._M.matvec(pad)[self.free]
+
+    def __call__(self, A: sp.spmatrix):
+        """Return ``solve(b) -> x`` for the free-dof SPD matrix ``A``."""
+        A = sp.csr_matrix(A)
+        if A.shape != (len(self.free), len(self.free)):
+            raise InputError(f"matrix shape {A.shape} does not match {len(self.free)} free dofs")
+        state = {"fresh": self.ml is None}
+        if self.ml is None:
+            self.setup(A)
+
+        def solve(b: np.ndarray) -> np.ndarray:
+            try:
+                x, info = pcg(A, b, self.precondition, rtol=self.rtol, maxiter=self.maxiter, what="AMG-CG")
+                ok = info.iterations <= self.rebuild_iterations or state["fresh"]
+            except ConvergenceError:
+                if state["fresh"]:
+                    raise
+                ok = False
+            if not ok:  # stale hierarchy: rebuild for this matrix and solve again
+                self.setup(A)
+                state["fresh"] = True
+                x, info = pcg(A, b, self.precondition, rtol=self.rtol, maxiter=self.maxiter, what="AMG-CG")
+            self.last = info
+            return x
+
+        return solve
+
+    def __repr__(self) -> str:
+        lv = "none" if self.ml is None else f"{len(self.ml.levels)} levels"
+        return f"AMGSolverFactory(n={len(self.free)}, hierarchy={lv}, setups={self.n_setups})"
+
+
+def jacobi_solver_factory(rtol: float = 1e-8, maxiter: int | None = None):
+    """Factory of Jacobi-preconditioned CG solves (cheap setup; fine at small size)."""
+
+    def make(A):
+        A = sp.csr_matrix(A)
+        d = A.diagonal()
+        if np.any(d <= 0):
+            raise InputError("Jacobi-CG needs a positive diagonal; the matrix is not SPD")
+        inv = 1.0 / d
+        return lambda b: pcg(A, b, lambda r: inv * r, rtol=rtol, maxiter=maxiter, what="Jacobi-CG")[0]
+
+    return make
+
+
+def direct_solver_factory():
+    """Factory of sparse LU solves (SuperLU); exact, for small systems (< ~1e5 dofs)."""
+
+    def make(A):
+        lu = spla.splu(sp.csc_matrix(A))
+        return lambda b: lu.solve(np.asarray(b, dtype=float))
+
+    return make

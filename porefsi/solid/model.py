@@ -1,0 +1,229 @@
+r"""The assembled solid model: a :class:`~porefsi.integrators.system.SecondOrderSystem` on free dofs.
+
+.. math::
+
+    M_{ff}\, \ddot u_f + f_{int}(u_f + u_D(t))_f = f_{ext}(t)_f,
+    \qquad u_D(t) = u_D^0 + \dot u_D\, t
+
+Dirichlet dofs are condensed out (the free-free blocks keep K symmetric); because the prescribed
+motion is affine in t, :math:`\ddot u_D = 0` and the mass couples no load from it.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from porefsi.errors import InputError
+from porefsi.solid import forms
+from porefsi.solid.assembly import P1Assembler, submatrix_selector
+from porefsi.solid.bc import Constraints, Traction
+from porefsi.solid.linsolve import AMGSolverFactory, direct_solver_factory
+from porefsi.solid.materials import Material
+from porefsi.solid.mesh import FACET_TAGS, SolidMesh
+
+__all__ = ["SolidModel"]
+
+
+class SolidModel:
+    """Nonlinear elastic solid on a :class:`SolidMesh`, condensed to its free dofs.
+
+    Parameters
+    ----------
+    mesh : SolidMesh
+    material : Material
+    bcs : sequence of Fixed / Roller / Prescribed
+        Dirichlet conditions (see :mod:`porefsi.solid.bc`).
+    tractions : sequence of Traction, optional
+        Dead surface loads on tagged facets, scaled by ``load_factor(t)``.
+    load_factor : callable, optional
+        ``t -> float`` multiplying the tractions (default 1).
+    nodal_forces : ndarray (Nn, 3) or callable ``t -> (Nn, 3)``, optional
+        Forces (N) on the mesh vertices, e.g. pore-pressure forces from the coupling.
+    order : {1, 2}
+        P1 (lumped mass, numba fast path) or P2 (consistent mass, scikit-fem forms).
+    backend : {"auto", "numba", "skfem"}
+        Assembly route for P1 ("auto" = numba); P2 always uses scikit-fem.
+
+    Notes
+    -----
+    :meth:`with_nodal_forces` returns a new model sharing every assembled structure, so a
+    coupling can swap the load each exchange step at no cost.
+    """
+
+    def __init__(self, mesh: SolidMesh, material: Material, bcs: Sequence = (), *,
+                 tractions: Sequence[Traction] = (), load_factor: Callable[[float], float] | None = None,
+                 nodal_forces=None, order: int = 1, backend: str = "auto"):
+        if not isinstance(mesh, SolidMesh):
+            raise InputError(f"mesh must be a SolidMesh, got {type(mesh).__name__}")
+        if not isinstance(material, Material):
+            raise InputError(f"material must be a Material, got {type(material).__name__}")
+        if backend not in ("auto", "numba", "skfem"):
+            raise InputError(f"backend must be 'auto', 'numba' or 'skfem', got {backend!r}")
+        if order == 2 and backend == "numba":
+            raise InputError("the numba fast path is P1 only; use backend='skfem' (or 'auto') for P2")
+        self.mesh, self.material, self.order = mesh, material, int(order)
+        self.feb = forms.make_basis(mesh, self.order)
+        self.backend = "numba" if (backend == "auto" and order == 1) else ("skfem" if backend == "auto" else backend)
+        self.bcs = tuple(bcs)
+        self.constraints = Constraints.build(self.feb.dof_points, self.bcs)
+        self.free = self.constraints.free
+        self._p1 = P1Assembler(mesh, material) if self.backend == "numba" else None
+        if self._p1 is not None:
+            self._sel = submatrix_selector(self._p1.indptr, self._p1.indices, self.free)
+        self._traction_vec = np.zeros(self.feb.n_dofs)
+        for tr in tractions:
+            self._traction_vec += forms.facet_load(self.feb, mesh.facets_tagged(FACET_TAGS[tr.tag]),
+                                                   traction=tr.traction, pressure=tr.pressure)
+        self.tractions = tuple(tractions)
+        self.load_factor = load_factor
+        self._nodal = None
+        self._set_nodal(nodal_forces)
+        self._mass = None
+        self._cache = None
+        self._solver_factory = None
+
+    # ---- loads -------------------------------------------------------------------------
+    def _set_nodal(self, F):
+        if F is not None and not callable(F):
+            F = np.asarray(F, dtype=float)
+            if F.shape != (self.mesh.n_nodes, 3):
+                raise InputError(f"nodal forces must have shape ({self.mesh.n_nodes}, 3) (N), got {F.shape}")
+        self._nodal = F
+
+    def with_nodal_forces(self, F) -> SolidModel:
+        """A model identical to this one but with nodal forces ``F`` ((Nn, 3) N, or ``t -> (Nn, 3)``)."""
+        new = copy.copy(self)
+        new._set_nodal(F)
+        return new
+
+    def full_external_force(self, t: float) -> np.ndarray:
+        """External load on all dofs, N, shape (n_full,)."""
+        s = 1.0 if self.load_factor is None else float(self.load_factor(t))
+        f = s * self._traction_vec
+        if self._nodal is not None:
+            F = self._nodal(t) if callable(self._nodal) else self._nodal
+            F = np.asarray(F, dtype=float)
+            if F.shape != (self.mesh.n_nodes, 3):
+                raise InputError(f"nodal force function returned shape {F.shape}, expected ({self.mesh.n_nodes}, 3)")
+            f = f.copy()
+            f[: 3 * self.mesh.n_nodes] += F.reshape(-1)
+        return f
+
+    # ---- protocol ------------------------------------------------------------------------
+    @property
+    def n_dofs(self) -> int:
+        """Number of free dofs."""
+        return len(self.free)
+
+    @property
+    def n_full(self) -> int:
+        """Number of dofs before condensation."""
+        return self.feb.n_dofs
+
+    def full_displacement(self, u: np.ndarray, t: float) -> np.ndarray:
+        """All dofs (n_full,) from the free dofs ``u`` (n,) and the prescribed motion at t."""
+        u = np.asarray(u, dtype=float)
+        if u.shape != (self.n_dofs,):
+            raise InputError(f"u must have shape ({self.n_dofs},), got {u.shape}")
+        full = np.zeros(self.n_full)
+        full[self.free] = u
+        full[self.constraints.dofs] = self.constraints.values(t)
+        return full
+
+    def expand(self, u: np.ndarray, t: float) -> np.ndarray:
+        """Vertex displacement (Nn, 3), m, from the free dofs at time t."""
+        return self.full_displacement(u, t)[: 3 * self.mesh.n_nodes].reshape(-1, 3)
+
+    def _evaluate(self, u: np.ndarray, t: float, want_K: bool):
+        c = self._cache
+        if c is not None and c[0] == t and (c[3] is not None or not want_K) and np.array_equal(c[1], u):
+            return c[2], c[3]
+        full = self.full_displacement(u, t)
+        if self._p1 is not None:
+            f, K = self._p1.assemble(full.reshape(-1, 3), want_K)
+        else:
+            f = forms.internal_force(self.feb, self.material, full)
+            K = forms.tangent(self.feb, self.material, full) if want_K else None
+        self._cache = (float(t), np.array(u, dtype=float), f, K)
+        return f, K
+
+    def full_internal_force(self, u: np.ndarray, t: float) -> np.ndarray:
+        """Internal force on all dofs (n_full,), N (reactions are read from it)."""
+        return self._evaluate(u, t, False)[0]
+
+    def internal_force(self, u: np.ndarray, t: float) -> np.ndarray:
+        """f_int on the free dofs, N, shape (n,)."""
+        return self._evaluate(u, t, False)[0][self.free]
+
+    def tangent(self, u: np.ndarray, t: float) -> sp.csr_matrix:
+        """Tangent stiffness on the free dofs, N/m, CSR (n, n), symmetric."""
+        _, K = self._evaluate(u, t, True)
+        if self._p1 is not None:
+            sel, ip, ix = self._sel
+            return sp.csr_matrix((K.data[sel], ix, ip), shape=(self.n_dofs, self.n_dofs))
+        return K[self.free][:, self.free].tocsr()
+
+    def external_force(self, t: float) -> np.ndarray:
+        """f_ext on the free dofs, N, shape (n,)."""
+        return self.full_external_force(t)[self.free]
+
+    def full_mass(self):
+        """Mass on all dofs: lumped diagonal (n_full,) for P1, consistent CSR for P2; kg."""
+        if self._mass is None:
+            if self.order == 1:
+                self._mass = forms.lumped_mass_p1(self.mesh, self.material.density)
+            else:
+                self._mass = forms.consistent_mass(self.feb, self.material.density)
+        return self._mass
+
+    def mass(self):
+        """Mass on the free dofs: ndarray (n,) (P1, lumped) or CSR (n, n) (P2, consistent); kg."""
+        M = self.full_mass()
+        if self.order == 1:
+            return M[self.free]
+        return M[self.free][:, self.free].tocsr()
+
+    # ---- solvers and post-processing ------------------------------------------------------
+    def make_solver(self, A: sp.spmatrix):
+        """``solve(b) -> x`` for an SPD free-dof matrix A (e.g. K or M + c K).
+
+        Small systems (< 3000 dofs) use a sparse LU; larger ones CG preconditioned by pyamg
+        smoothed aggregation with rigid-body modes, the hierarchy reused across calls while CG
+        converges within 40 iterations (see :class:`~porefsi.solid.linsolve.AMGSolverFactory`).
+        """
+        if self.n_dofs < 3000:
+            return direct_solver_factory()(A)
+        if self._solver_factory is None:
+            self._solver_factory = AMGSolverFactory(self.feb.dof_points, self.free)
+        return self._solver_factory(A)
+
+    @property
+    def solver_factory(self) -> AMGSolverFactory:
+        """The shared AMG factory (created on first use)."""
+        if self._solver_factory is None:
+            self._solver_factory = AMGSolverFactory(self.feb.dof_points, self.free)
+        return self._solver_factory
+
+    def reactions(self, u: np.ndarray, t: float) -> dict[str, np.ndarray]:
+        r"""Net force (3,), N, that the supports exert on each constrained box face.
+
+        Computed as :math:`\sum_{a \in face} (f_{int} - f_{ext})_a` over the Lagrange nodes on
+        the face (the residual vanishes at free dofs at equilibrium).
+        """
+        from porefsi.solid.bc import face_dofs
+
+        r = (self.full_internal_force(u, t) - self.full_external_force(t)).reshape(-1, 3)
+        out = {}
+        faces = sorted({spec.face for spec in self.bcs})
+        for face in faces:
+            nodes = face_dofs(self.feb.dof_points, face, 0) // 3
+            out[face] = r[nodes].sum(axis=0)
+        return out
+
+    def __repr__(self) -> str:
+        return (f"SolidModel(P{self.order}, {self.material.name}, n_dofs={self.n_dofs}, "
+                f"n_full={self.n_full}, backend={self.backend})")

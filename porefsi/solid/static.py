@@ -1,0 +1,164 @@
+r"""Quasi-static equilibrium (no inertia): Newton's method with load increments.
+
+Solve :math:`f_{int}(u_f, t)_f = f_{ext}(t)_f` for the free dofs, t playing the role of a load
+parameter (prescribed motions and load factors are functions of t).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from porefsi.errors import ConvergenceError, InputError, MeshError
+from porefsi.image.voxel_image import axis_index
+from porefsi.solid.bc import uniaxial_bcs
+from porefsi.solid.materials import Material
+from porefsi.solid.mesh import FACE_NAMES, SolidMesh
+
+__all__ = ["NewtonInfo", "solve_static", "UniaxialResult", "uniaxial_compression"]
+
+
+@dataclasses.dataclass
+class NewtonInfo:
+    """Newton iterations, relative residual history (per iteration) and linear iterations."""
+
+    iterations: int = 0
+    history: list = dataclasses.field(default_factory=list)
+    linear_iterations: list = dataclasses.field(default_factory=list)
+    converged: bool = False
+
+
+def solve_static(model, t: float, u0: np.ndarray | None = None, *, rtol: float = 1e-8,
+                 max_iter: int = 25, make_solver=None) -> tuple[np.ndarray, NewtonInfo]:
+    r"""Newton solve of :math:`r(u) = f_{int}(u, t) - f_{ext}(t) = 0` on the free dofs.
+
+    Converged when :math:`\|r\| \le rtol \cdot \max(\|f_{ext}\|, \|f_{int}(0, t)\|, \|K_0 u\|)`, a
+    scale that stays meaningful when the load is a prescribed displacement alone.
+
+    Parameters
+    ----------
+    model : SecondOrderSystem with ``make_solver`` (e.g. SolidModel)
+    t : float
+        Time / load parameter.
+    u0 : ndarray, shape (n,), optional
+        Initial guess (default zero).
+
+    Raises
+    ------
+    ConvergenceError
+        If the residual does not fall below tolerance in ``max_iter`` iterations (with history).
+    MeshError
+        If an iterate inverts elements (take more load increments).
+    """
+    make_solver = model.make_solver if make_solver is None else make_solver
+    u = np.zeros(model.n_dofs) if u0 is None else np.array(u0, dtype=float)
+    fext = model.external_force(t)
+    r = model.internal_force(u, t) - fext
+    scale = max(np.linalg.norm(fext), np.linalg.norm(model.internal_force(np.zeros_like(u), t)), 1e-300)
+    r = model.internal_force(u, t) - fext
+    info = NewtonInfo()
+    info.history.append(np.linalg.norm(r) / scale)
+    for it in range(1, max_iter + 1):
+        if info.history[-1] <= rtol:
+            info.converged = True
+            info.iterations = it - 1
+            return u, info
+        K = model.tangent(u, t)
+        du = make_solver(K)(-r)
+        factory = getattr(model, "_solver_factory", None)
+        if factory is not None:
+            info.linear_iterations.append(factory.last.iterations)
+        if it == 1:
+            scale = max(scale, np.linalg.norm(K @ du))
+        u = u + du
+        r = model.internal_force(u, t) - fext
+        info.history.append(np.linalg.norm(r) / scale)
+    if info.history[-1] <= rtol:
+        info.converged, info.iterations = True, max_iter
+        return u, info
+    raise ConvergenceError(
+        f"Newton did not converge in {max_iter} iterations at t={t:g} (relative residual "
+        f"{info.history[-1]:.3g}); use more load increments", info.history)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class UniaxialResult:
+    """Outcome of :func:`uniaxial_compression` (SI units).
+
+    Attributes
+    ----------
+    u : ndarray (Nn, 3)
+        Vertex displacement, m.
+    sigma : ndarray (Ne, 3, 3)
+        Cauchy stress per element, Pa.
+    von_mises_element : ndarray (Ne,), Pa
+    von_mises_nodal : ndarray (Nn,), Pa
+    reaction : ndarray (3,)
+        Force the platen exerts on the loaded face, N.
+    effective_modulus : float
+        |R_axis| / (A strain), Pa, A the box face area.
+    strain : float
+    newton : list of NewtonInfo
+        One per load increment.
+    """
+
+    u: np.ndarray
+    sigma: np.ndarray
+    von_mises_element: np.ndarray
+    von_mises_nodal: np.ndarray
+    reaction: np.ndarray
+    effective_modulus: float
+    strain: float
+    newton: list
+    seconds: float
+
+
+def uniaxial_compression(mesh: SolidMesh, material: Material, strain: float = 1e-3, *, axis="z",
+                         n_steps: int = 1, order: int = 1, lateral: str = "roller", rtol: float = 1e-8,
+                         ) -> UniaxialResult:
+    """Compress ``mesh`` along ``axis`` by nominal ``strain`` with the paper's boundary conditions.
+
+    The min face is fixed, the max face is displaced by ``-strain * L`` (bonded platen), the
+    lateral faces are on rollers; the load is applied in ``n_steps`` equal increments, each
+    solved by Newton (t = 0..1 is the load parameter).
+
+    Raises
+    ------
+    InputError
+        strain <= 0 or >= 1, n_steps < 1.
+    MeshError, ConvergenceError
+        If elements invert or Newton fails (use more increments).
+    """
+    from porefsi.solid.model import SolidModel
+    from porefsi.solid.stress import effective_modulus, element_cauchy, nodal_average, von_mises
+
+    if not (0 < strain < 1):
+        raise InputError(f"strain must be in (0, 1) (compression, dimensionless), got {strain!r}")
+    if int(n_steps) < 1:
+        raise InputError(f"n_steps must be >= 1, got {n_steps!r}")
+    t0 = time.perf_counter()
+    ax = axis_index(axis)
+    lo, hi = mesh.bounds[:, ax]
+    L = hi - lo
+    model = SolidModel(mesh, material, uniaxial_bcs(ax, rate=-strain * L, lateral=lateral), order=order)
+    u = np.zeros(model.n_dofs)
+    infos = []
+    for k in range(1, int(n_steps) + 1):
+        t = k / int(n_steps)
+        try:
+            u, info = solve_static(model, t, u0=u, rtol=rtol)
+        except MeshError as exc:
+            raise MeshError(f"{exc} (at load increment {k}/{n_steps}; try n_steps={2 * int(n_steps)})") from None
+        infos.append(info)
+    R = -model.reactions(u, 1.0)[FACE_NAMES[2 * ax + 1]]  # force of the platen on the solid
+    ext = np.ptp(mesh.points, axis=0)
+    area = float(np.prod(np.delete(ext, ax)))
+    sigma = element_cauchy(model, u, 1.0)
+    vm = von_mises(sigma)
+    return UniaxialResult(
+        u=model.expand(u, 1.0), sigma=sigma, von_mises_element=vm, von_mises_nodal=nodal_average(mesh, vm),
+        reaction=R, effective_modulus=effective_modulus(R[ax], area, strain), strain=float(strain),
+        newton=infos, seconds=time.perf_counter() - t0,
+    )
