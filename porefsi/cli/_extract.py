@@ -1,0 +1,238 @@
+"""``porefsi extract`` and ``porefsi permeability``: image -> pore network -> absolute permeability.
+
+Also the shared ``IMAGE_OR_NET`` argument (:func:`add_network_args`, :func:`network_from_args`)
+that every subcommand working on a network uses: a network file (``NET.npz`` written by
+``porefsi extract -o``, or any npz of OpenPNM-keyed arrays with porefsi's extras) is loaded as is;
+anything else is read as an image, reduced to its pore cluster percolating along ``--axis`` and
+extracted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from porefsi.cli._common import add_image_args, emit, image_from_args
+from porefsi.errors import InputError
+from porefsi.image.voxel_image import AXES
+from porefsi.network.network import Network
+
+__all__ = ["register", "add_network_args", "network_from_args", "run_extract", "run_permeability"]
+
+_SAMPLE = "built-in sample berea120"
+
+
+def add_network_args(p: argparse.ArgumentParser) -> None:
+    """Add ``IMAGE_OR_NET``, ``--axis``, ``--keep-isolated`` and the image options to ``p``."""
+    p.add_argument(
+        "source", nargs="?", default=None, metavar="IMAGE_OR_NET",
+        help="a network file (NET.npz from 'porefsi extract -o') or a segmented image "
+        "(.npy .npz .raw+.mhd .raw .tif); default: the built-in 120^3 Berea sample",
+    )
+    _add_axis_args(p)
+    add_image_args(p)
+
+
+def _add_axis_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--axis", choices=AXES, default="x",
+                   help="flow axis (x, y, z = array axes 0, 1, 2); default x")
+    p.add_argument("--keep-isolated", action="store_true",
+                   help="images: extract every pore cluster instead of only the one percolating along --axis")
+
+
+def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
+    """Network from ``args.source`` plus a summary of how it was obtained."""
+    from porefsi.network.convert import is_network_file, load_network
+
+    source = getattr(args, "source", None)
+    axis = getattr(args, "axis", "x") or "x"
+    t0 = time.perf_counter()
+    if source is not None and is_network_file(source):
+        image_opts = [f"--{k.replace('_', '-')}" for k in ("voxel_size", "threshold", "pore_value", "shape",
+                                                               "dtype", "key")
+                      if getattr(args, k, None) is not None]
+        image_opts += [f"--{k.replace('_', '-')}" for k in ("invert", "pore_above", "keep_isolated")
+                       if getattr(args, k, False)]
+        if image_opts:
+            raise InputError(
+                f"{' '.join(image_opts)} apply to images, but {source} is a network file (it stores its "
+                "own voxel size and geometry); drop those options"
+            )
+        net = load_network(source)
+        return net, {"source": str(source), "source_kind": "network", "voxel_size_m": net.voxel_size,
+                     "shape": list(net.shape), "seconds_read": time.perf_counter() - t0}
+    details = _extract_from_image(args, source, axis, keep_isolated=getattr(args, "keep_isolated", False))
+    return details.pop("_network"), details
+
+
+def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
+    from porefsi.image.ops import percolating_cluster
+    from porefsi.network.extract import extract_network
+
+    t0 = time.perf_counter()
+    image = image_from_args(args, source)
+    t_read = time.perf_counter() - t0
+    porosity = image.porosity
+    if porosity == 0.0:
+        raise InputError(
+            f"image {source or _SAMPLE} has no pore voxels (all solid); porefsi reads 1 as pore: "
+            "check --invert, --threshold or --pore-value"
+        )
+    removed = 0.0
+    work = image
+    if not keep_isolated and porosity < 1.0:
+        perc = percolating_cluster(image, axis)
+        removed, work = float(perc.removed_fraction), perc.image
+    t1 = time.perf_counter()
+    ext = extract_network(work)
+    t_ext = time.perf_counter() - t1
+    net = ext.network
+    return {
+        "_network": net,
+        "_extraction": ext,
+        "_image": image,
+        "source": str(source) if source is not None else _SAMPLE,
+        "source_kind": "image",
+        "shape": list(image.shape),
+        "voxel_size_m": image.voxel_size,
+        "porosity": porosity,
+        "axis": axis,
+        "removed_fraction": removed,
+        "connected_porosity": work.porosity,
+        "network_porosity": float(ext.porosity),
+        "seconds_read": t_read,
+        "seconds_extract": t_ext,
+    }
+
+
+def network_from_args(args: argparse.Namespace) -> Network:
+    """Return the network named by ``args.source`` (see :func:`add_network_args`).
+
+    A network file is loaded; an image (or the built-in sample when ``source`` is None) is read
+    with the image options, reduced to the pore cluster percolating along ``args.axis`` unless
+    ``args.keep_isolated``, and extracted.
+
+    Raises
+    ------
+    InputError
+        Unreadable file, bad image options, all-solid image, image options with a network file.
+    NetworkError
+        No pore path along ``args.axis``, or no pore found by the extraction.
+    """
+    return _network_and_details(args)[0]
+
+
+def _network_stats(net: Network) -> dict:
+    z = net.coordination
+    return {
+        "n_pores": net.n_pores,
+        "n_throats": net.n_throats,
+        "mean_coordination": float(z.mean()) if net.n_pores else 0.0,
+        "n_isolated_pores": int(np.count_nonzero(z == 0)),
+        "mean_pore_radius_m": float(net.pore_radius.mean()) if net.n_pores else 0.0,
+        "mean_throat_radius_m": float(net.throat_radius.mean()) if net.n_throats else 0.0,
+    }
+
+
+def _prepare_output(path: str, suffix: str, what: str) -> Path:
+    p = Path(path)
+    if p.suffix.lower() != suffix:
+        raise InputError(f"{what} file {path!r} must end in {suffix}; e.g. {p.with_suffix(suffix).name}")
+    if not p.parent.exists():
+        raise InputError(f"cannot write {path}: folder {p.parent} does not exist; create it first")
+    return p
+
+
+def run_extract(args: argparse.Namespace) -> int:
+    """Run ``porefsi extract``."""
+    from porefsi.io.network_vtk import write_network_vtp
+    from porefsi.network.convert import save_network, write_statoil
+
+    t0 = time.perf_counter()
+    outs = {}
+    if args.output:
+        outs["network_file"] = _prepare_output(args.output, ".npz", "-o network")
+    if args.vtk:
+        outs["vtk_file"] = _prepare_output(args.vtk, ".vtp", "--vtk")
+    if args.statoil and not Path(args.statoil).parent.exists():
+        raise InputError(f"cannot write {args.statoil}_*.dat: folder {Path(args.statoil).parent} does not exist")
+    details = _extract_from_image(args, args.image, args.axis, keep_isolated=args.keep_isolated)
+    net = details.pop("_network")
+    details.pop("_extraction")
+    details.pop("_image")
+    summary = {**details, **_network_stats(net)}
+    if "network_file" in outs:
+        save_network(net, outs["network_file"])
+    if "vtk_file" in outs:
+        write_network_vtp(net, outs["vtk_file"])
+    if args.statoil:
+        write_statoil(net, args.statoil, args.axis)
+        outs["statoil_prefix"] = args.statoil
+    summary.update({k: str(v) for k, v in outs.items()})
+    summary["seconds"] = time.perf_counter() - t0
+    emit(summary, args.json)
+    return 0
+
+
+def run_permeability(args: argparse.Namespace) -> int:
+    """Run ``porefsi permeability``."""
+    from porefsi.flow.permeability import absolute_permeability
+
+    t0 = time.perf_counter()
+    net, details = _network_and_details(args)
+    for k in [k for k in details if k.startswith("_")]:
+        details.pop(k)
+    res = absolute_permeability(net, args.axis)
+    summary = {
+        "permeability_m2": res.k_m2,
+        "permeability_mD": res.k_mD,
+        "axis": res.axis,
+        **details,
+        **_network_stats(net),
+        "n_pores_solved": res.n_pores_solved,
+        "n_excluded_pores": res.info["n_excluded_pores"],
+        "length_m": res.length,
+        "area_m2": res.area,
+        "solver": res.info["solver"],
+        "residual": res.info["residual"],
+        "mass_balance_error": res.info["mass_balance_error"],
+    }
+    summary["seconds"] = time.perf_counter() - t0
+    emit(summary, args.json)
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add the ``extract`` and ``permeability`` subcommands."""
+    p = subparsers.add_parser(
+        "extract",
+        help="extract the maximal-ball pore network of a segmented image",
+        description="Read a segmented image (1 = pore), keep the pore cluster that percolates along "
+        "--axis, extract its maximal-ball network (spheres joined by cylinders) and write it.",
+    )
+    p.add_argument("image", nargs="?", default=None, metavar="IMAGE",
+                   help="segmented image (.npy .npz .raw+.mhd .raw .tif); default: the built-in Berea sample")
+    _add_axis_args(p)
+    p.add_argument("-o", "--output", default=None, metavar="NET.npz",
+                   help="write the network (OpenPNM-keyed arrays + porefsi extras, readable by numpy.load)")
+    p.add_argument("--vtk", default=None, metavar="NET.vtp",
+                   help="write a ParaView file: pores as points, throats as lines, with radii")
+    p.add_argument("--statoil", default=None, metavar="PREFIX",
+                   help="write PREFIX_node1.dat, _node2.dat, _link1.dat, _link2.dat for pnflow "
+                   "(flow along --axis becomes pnflow's x)")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    add_image_args(p)
+    p.set_defaults(func=run_extract)
+
+    q = subparsers.add_parser(
+        "permeability",
+        help="absolute permeability of an image or network",
+        description="Single-phase absolute permeability along --axis (Hagen-Poiseuille conduits, "
+        "inlet face at dp, outlet at 0), in m^2 and mD.",
+    )
+    add_network_args(q)
+    q.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    q.set_defaults(func=run_permeability)
