@@ -12,7 +12,8 @@ Weak form (reference configuration :math:`\Omega_0`, dead loads):
 
 P1 uses one quadrature point (exact: F is constant per element), P2 four (exact for the linear
 stiffness). Stress and moduli are evaluated once per assembly and passed into the forms as
-fields, read with ``.value`` (a plain array passed to a form arrives as a ``DiscreteField``).
+fields and unwrapped to plain arrays (a plain array passed to a form arrives as a
+``DiscreteField``; see :func:`_field`).
 """
 
 from __future__ import annotations
@@ -89,19 +90,29 @@ def _check_J(F):
         )
 
 
+def _field(f) -> np.ndarray:
+    """A precomputed array passed into a form, as a plain ndarray.
+
+    scikit-fem wraps it in a ``DiscreteField``; helpers such as ``skfem.helpers.inv`` applied to
+    that wrapper silently return zeros in some versions, and ``.value`` is deprecated in
+    scikit-fem 12, so unwrap explicitly.
+    """
+    return np.asarray(f)  # DiscreteField subclasses ndarray in scikit-fem >= 8
+
+
 @LinearForm
 def _residual_form(v, w):
-    return ddot(w["P"].value, grad(v))
+    return ddot(_field(w["P"]), grad(v))
 
 
 @BilinearForm
 def _tangent_form(du, v, w):
-    return ddot(np.einsum("iJkL...,kL...->iJ...", w["A"].value, grad(du)), grad(v))
+    return ddot(np.einsum("iJkL...,kL...->iJ...", _field(w["A"]), grad(du)), grad(v))
 
 
 @BilinearForm
 def _mass_form(du, v, w):
-    return w["rho"].value * dot(du, v)
+    return _field(w["rho"]) * dot(du, v)
 
 
 def internal_force(feb: FEBasis, material: Material, u: np.ndarray) -> np.ndarray:
