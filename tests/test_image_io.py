@@ -404,3 +404,47 @@ def test_builtin_sample_matches_its_documentation():
 def test_unknown_sample_lists_names():
     with pytest.raises(InputError, match="built-in samples: berea120"):
         load_sample("bentheimer")
+
+
+def test_mhd_zlib_compressed_and_tif_data_file(tmp_path, rng):
+    import zlib
+
+    a = _binary(rng, (3, 4, 5))
+    (tmp_path / "z.zraw").write_bytes(zlib.compress(a.tobytes("F")))
+    _mhd(tmp_path / "z.mhd", "z.zraw", a.shape, spacing="1e-6 1e-6 1e-6", extra="CompressedData = True\n")
+    np.testing.assert_array_equal(read_image(tmp_path / "z.mhd").phases, a)
+    # pnextract: a .tif data file; the header's spacing wins over the TIFF tags
+    tifffile.imwrite(tmp_path / "t.tif", a.transpose(2, 1, 0), photometric="minisblack")
+    _mhd(tmp_path / "t.mhd", "t.tif", a.shape, spacing="1.5 1.5 1.5")
+    img = read_image(tmp_path / "t.mhd")
+    np.testing.assert_array_equal(img.phases, a)
+    assert img.voxel_size == 1.5e-6
+
+
+def test_explicit_voxel_size_overrides_unusable_file_spacing(tmp_path, rng):
+    """An explicit voxel size makes a non-cubic or unit-less spacing usable; it also sets the
+    scale of the Offset (metres per file unit = voxel_size / spacing)."""
+    a = _binary(rng, (3, 3, 3))
+    a.ravel(order="F").tofile(tmp_path / "o.raw")
+    _mhd(tmp_path / "o.mhd", "o.raw", a.shape, spacing="0.005 0.005 0.005", extra="Offset = 0.0025 0.0125 0.0025\n")
+    img = read_image(tmp_path / "o.mhd", voxel_size=5e-6)  # ambiguous unit: the user's size decides
+    assert img.voxel_size == 5e-6
+    np.testing.assert_allclose(img.origin, [0, 10e-6, 0], atol=1e-20)
+    _mhd(tmp_path / "n.mhd", "o.raw", a.shape, spacing="1 1 2")
+    assert read_image(tmp_path / "n.mhd", voxel_size=1e-6).voxel_size == 1e-6
+
+
+def test_tiff_lzw_needs_imagecodecs_or_reads(tmp_path, rng):
+    """LZW (common for micro-CT stacks) is decoded by tifffile only through imagecodecs."""
+    from PIL import Image
+
+    vol = _binary(rng, (9, 8, 3))
+    pages = [Image.fromarray(p * 255) for p in vol.transpose(2, 1, 0)]
+    pages[0].save(tmp_path / "lzw.tif", save_all=True, append_images=pages[1:], compression="tiff_lzw")
+    try:
+        import imagecodecs  # noqa: F401
+    except ImportError:
+        with pytest.raises(InputError, match="pip install imagecodecs"):
+            read_image(tmp_path / "lzw.tif", voxel_size=1e-6)
+    else:
+        np.testing.assert_array_equal(read_image(tmp_path / "lzw.tif", voxel_size=1e-6).phases, vol)

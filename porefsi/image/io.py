@@ -460,6 +460,11 @@ def _read_tiff(path: Path, override: bool = False):
             runit = int(tags["ResolutionUnit"].value) if "ResolutionUnit" in tags else 2
     except tifffile.TiffFileError as exc:
         raise InputError(f"{path} is not a readable TIFF file ({exc})") from None
+    except ValueError as exc:
+        if "imagecodecs" not in str(exc):
+            raise
+        raise InputError(f"{path} is compressed with a codec tifffile reads only with the imagecodecs "
+                         f"package ({exc}); pip install imagecodecs, or save the stack uncompressed/deflate") from None
     arr = _require_3d(arr, f"TIFF {path} (pages, rows, columns[, samples])")
     arr = arr.transpose(2, 1, 0)  # (page, row, column) -> (x=column, y=row, z=page)
 
