@@ -230,7 +230,7 @@ def test_mhd_pnextract_style_header(tmp_path, rng):
     (tmp_path / "b.mhd").write_text(
         "ObjectType =  Image\nNDims =       3\nElementType = MET_UCHAR\n\nDimSize = 4 4 4\n"
         "ElementSize = 3.2 3.2 3.2\nOffset = 0 0 0\n\nElementDataFile = b.raw.gz\n\n"
-        "Unit = 1e-3\n#threshold 0 128\n'comment'\n______ free text\ncropD 0 0 0 2 2 2\n"
+        "Unit = 1e-3\nOffset = 0 0 0\n#threshold 0 128\n'comment'\n______ free text\ncropD 0 0 0 2 2 2\n"
     )
     img = read_image(tmp_path / "b.mhd", invert=True)
     np.testing.assert_array_equal(img.phases, a)

@@ -275,6 +275,13 @@ _PNEXTRACT_COMMANDS = {
     "keepLargest0", "mapFrom", "Paint", "PaintAdd", "PaintBefore", "PaintAfter", "PaintAddBefore",
     "PaintAddAfter", "operation", "operat",
 }
+# MetaImage keys pnextract's header loop also accepts after ElementDataFile (lower case).
+_MHD_KEYS = {
+    "objecttype", "ndims", "elementtype", "offset", "elementsize", "elementspacing", "dimsize", "binarydata",
+    "unit", "headersize", "outputformat", "defaultimageformat", "binarydatabyteordermsb",
+    "elementbyteordermsb", "compresseddata", "compresseddatasize", "transformmatrix",
+    "elementnumberofchannels", "centerofrotation", "anatomicalorientation",
+}
 _MHD_HARMLESS = {"info", "write", "write8bit", "skip", ";", "sliceToPng", "sliceToPngBW", "end"}
 
 
@@ -302,7 +309,7 @@ def _parse_mhd(path: Path):
         if not text or text[0] in "#'":
             continue
         word = text.split()[0].rstrip("=:")
-        if word.lower() in ("unit", "defaultimageformat", "outputformat") and "=" in text:
+        if word.lower() in _MHD_KEYS and "=" in text:  # pnextract reads header keys here too
             fields[word.lower()] = text.split("=", 1)[1].strip()
         elif word in _PNEXTRACT_COMMANDS:
             tail_cmds.append(text)
@@ -581,6 +588,14 @@ def read_image(
     TIFF stacks are read as x = column, y = row, z = page, i.e. ``tifffile.imread(path)``
     transposed by ``(2, 1, 0)``; the same volume saved as TIFF and as raw + mhd reads the same.
     ``Offset`` is the centre of the first voxel (ITK, VTK); ``VoxelImage.origin`` its corner.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> path = write_image(load_sample(), os.path.join(tempfile.mkdtemp(), "berea.mhd"))
+    >>> img = read_image(path)
+    >>> img.shape, img.voxel_size, round(img.porosity, 5)
+    ((120, 120, 120), 5.345e-06, 0.18821)
     """
     p = Path(path)
     if not p.exists():
@@ -665,6 +680,13 @@ def write_image(image: VoxelImage, path) -> Path:
     header stores lengths in metres with ``Unit = 1`` (pnextract's keyword; ITK and ParaView ignore
     it and show metres, matching porefsi's network files), ``Offset`` = centre of voxel (0, 0, 0),
     ``DimSize = nx ny nz`` with x fastest in the ``.raw``.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> img = VoxelImage(np.eye(3, dtype=np.uint8)[:, :, None], 2e-6)
+    >>> write_image(img, os.path.join(tempfile.mkdtemp(), "eye.raw")).name
+    'eye.mhd'
     """
     if not isinstance(image, VoxelImage):
         raise InputError(f"write_image needs a VoxelImage, got {type(image).__name__}")
