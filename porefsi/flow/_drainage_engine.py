@@ -1,0 +1,315 @@
+"""Event engine of the dynamic drainage model (private; the public API is :mod:`porefsi.flow.drainage`).
+
+State: non-wetting volume per pore ``vn`` (full when ``vn == vol``), ``trapped`` pores, and per
+edge ``inv`` (non-wetting fluid has passed the constriction) and ``closed`` (a meniscus in the
+body of a filling pore held still because the field would push it back). Edge kinds follow from
+these (see :meth:`Engine.conductances`): non-wetting conduit, active meniscus, pinned meniscus,
+wetting conduit. Between two events every flux is constant, so volumes are integrated exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from porefsi.errors import ConvergenceError, NetworkError
+from porefsi.flow import _kernels as kern
+from porefsi.flow._drainage_graph import DrainageGraph
+from porefsi.flow._drainage_solver import PressureSolver
+
+__all__ = ["Engine"]
+
+
+class Engine:
+    """Mutable event engine on a :class:`DrainageGraph` (owned by one simulator; never shared)."""
+
+    def __init__(self, graph: DrainageGraph, rate: float | None, inlet_pressure: float | None,
+                 solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None):
+        g = graph
+        self.g = g
+        self.rate = rate
+        self.p_fixed = inlet_pressure
+        n, E = g.n, g.n_edges
+        self.solver = PressureSolver(n + 1, method=solver)
+        self.skip_solves = bool(skip_solves) and rate is not None
+        self.max_iter = int(max_active_set_iter) if max_active_set_iter else 4 * E + 10
+        self.vn = np.zeros(n)
+        self.full = np.zeros(n, dtype=bool)
+        self.trapped = np.zeros(n, dtype=bool)
+        self.inv = np.zeros(E, dtype=bool)
+        self.closed = np.zeros(E, dtype=bool)
+        self.parent = np.full(n, -1, dtype=np.int64)
+        self.tree_res = np.zeros(n + 1)
+        self.P = np.zeros(n + 1)
+        self.p_valid = True  # P matches the configuration (all zero at rest)
+        self.q = np.zeros(n)
+        self.q_out_n = 0.0
+        self.q_out_w = 0.0
+        self.flux_valid = False
+        self.t = 0.0
+        self.injected = 0.0
+        self.out_n = 0.0
+        self.out_w = 0.0
+        self.deformation = 0.0
+        self.fill_time = np.full(n, np.nan)
+        self.edge_time = np.full(E, np.nan)
+        self.t_breakthrough = np.nan
+        self.sw_breakthrough = np.nan
+        self.n_events = self.n_fills = self.n_jumps = self.n_skipped = self.n_changes = 0
+        self.max_iter_seen = 0
+        self._stamp = np.zeros(1, dtype=np.int64)
+        self._mark = np.zeros(n, dtype=np.int64)
+        self._dist = None
+        self._pred = None
+        self._nbr_res = 1.0 / g.gw[g.nbr_edge]
+        self._ptol = 1e-10 * float(np.max(g.pcb))
+        self.rows: list[tuple] = []
+
+    # -- derived edge kinds ----------------------------------------------------------------
+    def _node_full(self):
+        return np.concatenate([self.full, [True, False]])
+
+    def conductances(self):
+        """Edge conductances for the current configuration and the active-meniscus mask."""
+        g = self.g
+        fx = self._node_full()
+        tx = np.concatenate([self.trapped, [False, False]])
+        fa, fb = fx[g.a], fx[g.b]
+        out_e = ~g.inner
+        nw = (fa & fb) | (out_e & fa)
+        men = (fa ^ fb) & self.inv & ~self.closed & ~out_e
+        w = ~fa & ~fb
+        tr = tx[g.a] | tx[g.b]
+        men &= ~tr
+        cond = np.where(nw | men, g.gn, np.where(w, g.gw, 0.0))
+        cond[tr] = 0.0
+        return cond, men, fa
+
+    def has_open_path(self) -> bool:
+        """Whether injected fluid can move: an active meniscus or a non-wetting conduit to the outlet."""
+        _, men, fa = self.conductances()
+        return bool(men.any() or (fa & ~self.g.inner).any())
+
+    # -- pressure solve --------------------------------------------------------------------
+    def solve(self):
+        """Solve the pressure field of the current configuration; return (cond, men, fa)."""
+        g = self.g
+        n = g.n
+        cond, men, fa = self.conductances()
+        diag = (np.bincount(g.a, cond, minlength=n + 2) + np.bincount(g.b, cond, minlength=n + 2))[:n + 1]
+        rhs = np.zeros(n + 1)
+        off = np.where(g.inner, -cond, 0.0)
+        if self.rate is not None:
+            rhs[n] = self.rate
+        else:
+            ie = g.is_in_edge
+            np.add.at(rhs, g.b[ie], cond[ie] * self.p_fixed)
+            off[ie] = 0.0
+            diag[n] = 1.0
+            rhs[n] = self.p_fixed
+        em = np.flatnonzero(men)
+        u = np.where(fa[em], g.a[em], g.b[em])
+        x = np.where(fa[em], g.b[em], g.a[em])
+        src = cond[em] * g.pcb[x]
+        np.add.at(rhs, u, src)
+        np.add.at(rhs, x, -src)
+        zero = diag <= 0
+        diag[zero] = 1.0
+        rhs[zero] = 0.0
+        data = np.zeros(g.indices.size)
+        data[g.pos_diag] = diag
+        data[g.pos_ab[g.inner]] = off[g.inner]
+        data[g.pos_ba[g.inner]] = off[g.inner]
+        A = sp.csr_array((data, g.indices, g.pattern_indptr), shape=(n + 1, n + 1))
+        old = self.P
+        P = self.solver.solve(A, rhs, x0=old)
+        P[:n][self.trapped] = old[:n][self.trapped]
+        self.P = P
+        self.p_valid = True
+        return cond, men, fa
+
+    # -- events ----------------------------------------------------------------------------
+    def open_edge(self, e: int):
+        """Let the meniscus of edge ``e`` advance (first invasion or resumption of a stalled one)."""
+        g = self.g
+        if not self.inv[e]:
+            self.inv[e] = True
+            self.edge_time[e] = self.t
+            x = g.b[e] if (g.a[e] == g.n or self.full[g.a[e]]) else g.a[e]
+            if self.parent[x] < 0:
+                self.parent[x] = e
+        self.closed[e] = False
+        self.n_changes += 1
+
+    def _resolve(self):
+        """Establish the fluxes of the current configuration. Returns True for a quasi-static jump."""
+        g = self.g
+        n = g.n
+        if self.rate is not None and not self.has_open_path():
+            e, thr = self._cheapest()
+            self.open_edge(e)
+            self.n_jumps += 1
+            # static field: non-wetting at rest at the threshold, wetting at rest at the outlet pressure
+            P = np.where(self.trapped, self.P[:n], 0.0)
+            P[self.full] = thr
+            self.P = np.concatenate([P, [thr]])
+            self.p_valid = True
+            self.flux_valid = False
+            if self.skip_solves:
+                self._try_skip(e)
+            return True
+        blocked = np.zeros(g.n_edges, dtype=bool)
+        hist = []
+        for it in range(self.max_iter):
+            cond, men, fa = self.solve()
+            e, ex, kind = kern._most_violated(g.a, g.b, n, self.full, self.trapped, self.inv, self.closed,
+                                           blocked, self.P, g.thr, g.pcb)
+            if e < 0 or ex <= self._ptol:
+                self.max_iter_seen = max(self.max_iter_seen, it)
+                break
+            hist.append(float(ex))
+            if kind == 1:
+                self.open_edge(e)
+            else:
+                self.closed[e] = True
+                blocked[e] = True
+                self.n_changes += 1
+        else:
+            raise ConvergenceError(
+                f"active-set resolution did not settle in {self.max_iter} iterations at t = {self.t:.6g} s; "
+                "pass a larger max_active_set_iter or report this network", history=hist)
+        em = np.flatnonzero(men)
+        u = np.where(fa[em], g.a[em], g.b[em])
+        x = np.where(fa[em], g.b[em], g.a[em])
+        f = np.maximum(cond[em] * (self.P[u] - self.P[x] - g.pcb[x]), 0.0)
+        self.q = np.bincount(x, f, minlength=n)[:n].astype(float)
+        oe = np.flatnonzero(~g.inner)
+        fo = cond[oe] * self.P[g.a[oe]]
+        self.q_out_n = float(np.sum(np.where(fa[oe], fo, 0.0)))
+        self.q_out_w = float(np.sum(np.where(fa[oe], 0.0, fo)))
+        if self.rate is not None:
+            tot = float(self.q.sum()) + self.q_out_n
+            if not tot > 0:
+                raise ConvergenceError(f"no non-wetting flux at t = {self.t:.6g} s although fluid is injected",
+                                       history=hist)
+            s = self.rate / tot  # exact volume bookkeeping (round-off of the solve removed)
+            self.q *= s
+            self.q_out_n *= s
+            self.q_out_w = self.rate - self.q_out_n
+        self.flux_valid = True
+        return False
+
+    def _cheapest(self):
+        g = self.g
+        zero = np.zeros(g.n + 1)
+        nob = np.zeros(g.n_edges, dtype=bool)
+        e, ex, kind = kern._most_violated(g.a, g.b, g.n, self.full, self.trapped, self.inv, self.closed, nob,
+                                       zero, g.thr, g.pcb)
+        if e < 0 or kind != 1:
+            raise NetworkError(
+                f"at t = {self.t:.6g} s the injected fluid can neither advance nor leave the network "
+                "(no invadable throat and no path to the outlet)")
+        return int(e), float(-ex)
+
+    def _try_skip(self, e: int):
+        """Skip the solve after a jump when a bound proves no other meniscus can move (constant rate).
+
+        With one active meniscus (into pore x through e) and no breakthrough, all of Q fills x.
+        Non-wetting pressures are at most P_in and wetting pressures at least 0 (maximum principle),
+        so a pinned edge can open only if ``P_in >= threshold``. Rayleigh's monotonicity bounds
+        ``P_in <= Pc_b(x) + Q (R_tree + R_e + R_w_path)`` by the resistance of one path.
+        """
+        g = self.g
+        a, b = int(g.a[e]), int(g.b[e])
+        u, x = (a, b) if (a == g.n or self.full[a]) else (b, a)
+        usable = ~self.full & ~self.trapped
+        if self._pred is None or not kern._path_usable(x, self._pred, usable, g.n):
+            self._dist, self._pred = kern._dijkstra_to_outlet(g.indptr, g.nbr, self._nbr_res, usable, g.out_res_w)
+        dw = self._dist[x]
+        if not np.isfinite(dw):
+            return
+        p_up = g.pcb[x] + self.rate * (self.tree_res[u] + 1.0 / g.gn[e] + dw)
+        zero = np.zeros(g.n + 1)
+        nob = np.zeros(g.n_edges, dtype=bool)
+        e2, ex, _ = kern._most_violated(g.a, g.b, g.n, self.full, self.trapped, self.inv, self.closed, nob,
+                                     zero, g.thr, g.pcb)
+        thr_min = -ex if e2 >= 0 else np.inf
+        if p_up < thr_min * (1.0 - 1e-9):
+            self.q = np.zeros(g.n)
+            self.q[x] = self.rate
+            self.q_out_n = 0.0
+            self.q_out_w = self.rate
+            self.flux_valid = True
+            self.p_valid = False
+            self.n_skipped += 1
+
+    def step(self, t_target: float):
+        """Advance by one event (a pore becomes full, a jump, or reaching ``t_target``)."""
+        g = self.g
+        self.n_events += 1
+        if not self.flux_valid:
+            if self._resolve():
+                self._record(self.inlet_pressure())
+                return
+        filling = np.flatnonzero(self.q > 0)
+        dt, k = kern._filling_step(self.vn, g.vol, self.q, filling)
+        remaining = t_target - self.t
+        if dt >= remaining:
+            dt, k = remaining, -1
+        kern._apply_filling(self.vn, g.vol, self.q, filling, dt, k)
+        self.injected += (float(self.q.sum()) + self.q_out_n) * dt
+        self.out_n += self.q_out_n * dt
+        self.out_w += self.q_out_w * dt
+        self.t = t_target if k < 0 else self.t + dt
+        p_in = self.inlet_pressure()  # the inlet pressure during this interval
+        newly = filling[self.vn[filling] >= g.vol[filling]]
+        if newly.size:
+            self._on_full(newly)
+        self._record(p_in)
+
+    def _on_full(self, pores):
+        g = self.g
+        self.full[pores] = True
+        self.vn[pores] = g.vol[pores]
+        self.fill_time[pores] = self.t
+        self.n_fills += pores.size
+        for x in pores:
+            e = self.parent[x]
+            if e >= 0:
+                u = g.a[e] if g.b[e] == x else g.b[e]
+                self.tree_res[x] = self.tree_res[u] + 1.0 / g.gn[e]
+        if np.isnan(self.t_breakthrough) and g.is_outlet[pores].any():
+            self.t_breakthrough = self.t
+            self.sw_breakthrough = self.sw()
+        seeds = np.unique(np.concatenate([g.nbr[g.indptr[p]:g.indptr[p + 1]] for p in pores]))
+        seeds = seeds[~self.full[seeds] & ~self.trapped[seeds]]
+        if seeds.size:
+            kern._trapped_from(seeds, g.indptr, g.nbr, self.full, self.trapped, g.is_outlet, g.key,
+                            self._stamp, self._mark)
+        self.flux_valid = False
+        self.p_valid = False
+
+    # -- bookkeeping -----------------------------------------------------------------------
+    def sw(self) -> float:
+        """Wetting saturation of the kept pore space."""
+        return 1.0 - float(self.vn.sum()) / float(self.g.vol.sum())
+
+    def mass_error(self) -> float:
+        """Relative non-wetting volume balance error."""
+        den = self.injected + abs(self.deformation)
+        if den <= 0:
+            return 0.0
+        return abs(self.injected + self.deformation - float(self.vn.sum()) - self.out_n) / den
+
+    def inlet_pressure(self) -> float:
+        """Inlet node pressure if current, else NaN."""
+        return float(self.P[self.g.n]) if self.p_valid else np.nan
+
+    def _record(self, p_in):
+        self.rows.append((self.t, self.injected, self.sw(), p_in, self.q_out_w, self.q_out_n,
+                          self.n_events, self.solver.n_solves, self.mass_error(), self.n_fills))
+
+    def ensure_pressure(self):
+        """Solve for the pressure if a skipped solve left it stale (no configuration change)."""
+        if not self.p_valid:
+            self.solve()

@@ -1,0 +1,173 @@
+"""The augmented graph the drainage model works on (private).
+
+Pores connected to both faces of the flow axis are kept and renumbered ``0..n-1``; node ``n`` is
+the virtual inlet (a reservoir of injected non-wetting fluid) and node ``n + 1`` the virtual
+outlet (P = 0). Edges are the network's throats between kept pores plus one boundary edge per
+inlet pore ``(n, i)`` and per outlet pore ``(i, n + 1)``.
+
+Boundary edges are conduits through the boundary pore itself: a cylinder of the pore radius whose
+length is the distance from the pore centre to the face, floored at a quarter of the pore radius
+so that a centre on the face keeps a finite conductance. Their entry pressure is the pore-body
+capillary pressure (the face cuts the pore, so no narrower constriction is known).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from porefsi.errors import NetworkError
+from porefsi.flow.fluids import Fluids
+from porefsi.image.voxel_image import axis_index
+from porefsi.network.geometry import cylinder_resistance, resistance_factors
+from porefsi.network.network import Network
+
+__all__ = ["DrainageGraph", "build_graph", "spanning_pores", "boundary_lengths"]
+
+
+def spanning_pores(net: Network, axis) -> np.ndarray:
+    """Boolean mask (Np,) of pores whose connected component touches both faces of ``axis``.
+
+    Raises
+    ------
+    NetworkError
+        No pores on a face, or no component joins the two faces.
+    """
+    net.require_inlet_outlet(axis)
+    ax = axis_index(axis)
+    n = net.n_pores
+    c = net.throat_conns
+    adj = sp.coo_array((np.ones(len(c)), (c[:, 0], c[:, 1])), shape=(n, n))
+    _, lab = connected_components(adj, directed=False)
+    inl = np.unique(lab[net.inlet(ax)])
+    out = np.unique(lab[net.outlet(ax)])
+    both = np.intersect1d(inl, out)
+    if both.size == 0:
+        raise NetworkError(
+            f"no connected group of pores joins the {'xyz'[ax]}min and {'xyz'[ax]}max faces: the network "
+            "does not percolate along this axis; choose another axis or a larger image"
+        )
+    return np.isin(lab, both)
+
+
+def boundary_lengths(net: Network, axis) -> tuple[np.ndarray, np.ndarray]:
+    """Boundary-conduit lengths (m) of every pore to the low and the high face of ``axis``.
+
+    Distance from the pore centre to the face, floored at ``R / 4`` (see the module notes).
+    """
+    ax = axis_index(axis)
+    lo = net.origin[ax]
+    hi = lo + net.extent[ax]
+    x = net.pore_coords[:, ax]
+    floor = 0.25 * net.pore_radius
+    return np.maximum(x - lo, floor), np.maximum(hi - x, floor)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DrainageGraph:
+    """Arrays of the augmented graph (see module docstring). All arrays read-only by convention."""
+
+    n: int
+    keep: np.ndarray  # (n,) original pore index of each kept pore
+    a: np.ndarray  # (E,)
+    b: np.ndarray  # (E,)
+    throat: np.ndarray  # (E,) original throat index, -1 for boundary edges
+    gn: np.ndarray  # (E,) conductance with non-wetting fluid in all segments, m³/(Pa s)
+    gw: np.ndarray  # (E,) conductance with wetting fluid in all segments
+    thr: np.ndarray  # (E,) entry threshold, Pa
+    pcb: np.ndarray  # (n + 2,) pore-body capillary pressure (0 for the virtual nodes), Pa
+    vol: np.ndarray  # (n,) pore volumes, m³
+    is_outlet: np.ndarray  # (n,) bool
+    key: np.ndarray  # (n,) coordinate along the axis (search priority), m
+    indptr: np.ndarray  # (n + 1,) pore adjacency over internal edges
+    nbr: np.ndarray
+    nbr_edge: np.ndarray
+    out_res_w: np.ndarray  # (n,) wetting resistance pore -> outlet node (inf if not an outlet pore)
+    # fixed CSR pattern of the (n + 1) x (n + 1) pressure matrix
+    indices: np.ndarray
+    pattern_indptr: np.ndarray
+    pos_diag: np.ndarray
+    pos_ab: np.ndarray  # (E,) data position of (a, b), -1 for outlet edges
+    pos_ba: np.ndarray
+    row_of: np.ndarray  # (nnz,) row of every stored entry
+    inner: np.ndarray  # (E,) bool: edge has both ends among the unknowns (not an outlet edge)
+    is_in_edge: np.ndarray  # (E,) bool
+
+    @property
+    def n_edges(self) -> int:
+        """Number of augmented edges E."""
+        return int(self.a.shape[0])
+
+
+def build_graph(net: Network, fluids: Fluids, axis, keep: np.ndarray | None = None) -> DrainageGraph:
+    """Build the augmented graph of ``net`` for a drainage along ``axis``.
+
+    ``keep`` (original pore indices) fixes the kept pores, e.g. when carrying a state onto a
+    deformed copy of the same network; by default, the pores spanning the two faces.
+    """
+    ax = axis_index(axis)
+    if keep is None:
+        keep = np.flatnonzero(spanning_pores(net, ax))
+    keep = np.asarray(keep, dtype=np.int64)
+    n = keep.size
+    new_id = np.full(net.n_pores, -1, dtype=np.int64)
+    new_id[keep] = np.arange(n)
+    c = net.throat_conns
+    tmask = (new_id[c[:, 0]] >= 0) & (new_id[c[:, 1]] >= 0)
+    tid = np.flatnonzero(tmask)
+    h = resistance_factors(net)[tid].sum(axis=1)
+    R = net.pore_radius[keep]
+    L_lo, L_hi = boundary_lengths(net, ax)
+    inl = np.flatnonzero(net.inlet(ax)[keep])
+    out = np.flatnonzero(net.outlet(ax)[keep])
+    h_in = cylinder_resistance(R[inl], L_lo[keep][inl])
+    h_out = cylinder_resistance(R[out], L_hi[keep][out])
+    ai = new_id[c[tid, 0]]
+    bi = new_id[c[tid, 1]]
+    a = np.concatenate([ai, np.full(inl.size, n), out]).astype(np.int64)
+    b = np.concatenate([bi, inl, np.full(out.size, n + 1)]).astype(np.int64)
+    throat = np.concatenate([tid, np.full(inl.size + out.size, -1)]).astype(np.int64)
+    hs = np.concatenate([h, h_in, h_out])
+    pcb = np.zeros(n + 2)
+    pcb[:n] = fluids.capillary_pressure(R)
+    pe_int = np.maximum(fluids.capillary_pressure(net.throat_radius[tid]), np.maximum(pcb[ai], pcb[bi]))
+    thr = np.concatenate([pe_int, pcb[inl], np.full(out.size, np.inf)])
+    # adjacency over internal edges
+    m = ai.size
+    src = np.concatenate([ai, bi])
+    dst = np.concatenate([bi, ai])
+    eid = np.concatenate([np.arange(m), np.arange(m)])
+    order = np.argsort(src, kind="stable")
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(src, minlength=n))]).astype(np.int64)
+    is_outlet = np.zeros(n, dtype=bool)
+    is_outlet[out] = True
+    out_res = np.full(n, np.inf)
+    out_res[out] = fluids.mu_w * h_out
+    # pressure matrix pattern over unknowns 0..n (outlet eliminated)
+    inner = b <= n
+    rows = np.concatenate([np.arange(n + 1), a[inner], b[inner]])
+    cols = np.concatenate([np.arange(n + 1), b[inner], a[inner]])
+    perm = np.lexsort((cols, rows))
+    pos = np.empty(rows.size, dtype=np.int64)
+    pos[perm] = np.arange(rows.size)
+    p_indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n + 1))]).astype(np.int64)
+    n_in = int(inner.sum())
+    pos_ab = np.full(a.size, -1, dtype=np.int64)
+    pos_ba = np.full(a.size, -1, dtype=np.int64)
+    pos_ab[inner] = pos[n + 1:n + 1 + n_in]
+    pos_ba[inner] = pos[n + 1 + n_in:]
+    is_in_edge = np.zeros(a.size, dtype=bool)
+    is_in_edge[m:m + inl.size] = True
+    return DrainageGraph(
+        n=n, keep=keep, a=a, b=b, throat=throat,
+        gn=1.0 / (fluids.mu_n * hs), gw=1.0 / (fluids.mu_w * hs), thr=thr, pcb=pcb,
+        vol=net.pore_volume[keep].copy(), is_outlet=is_outlet,
+        key=net.pore_coords[keep, ax].copy(),
+        indptr=indptr, nbr=dst[order].astype(np.int64), nbr_edge=eid[order].astype(np.int64),
+        out_res_w=out_res, indices=cols[perm].astype(np.int32), pattern_indptr=p_indptr,
+        pos_diag=pos[:n + 1], pos_ab=pos_ab, pos_ba=pos_ba, row_of=rows[perm], inner=inner,
+        is_in_edge=is_in_edge,
+    )

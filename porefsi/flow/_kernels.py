@@ -1,0 +1,210 @@
+"""Numba kernels of the drainage model (private; each has a pure-Python twin in tests/reference).
+
+Edge-state conventions shared with :mod:`porefsi.flow._drainage_graph`: nodes ``0..n-1`` are pores,
+``n`` is the virtual inlet (always non-wetting) and ``n + 1`` the virtual outlet; edge ``e`` joins
+``a[e]`` and ``b[e]``.
+"""
+
+from __future__ import annotations
+
+import heapq
+
+import numpy as np
+
+from porefsi._numba import jit
+
+_INF = np.inf
+
+
+@jit
+def _filling_step(vol_nw, vol, q, filling):
+    """Smallest filling time over pores ``filling`` (indices) with inflow ``q > 0``.
+
+    Returns ``(dt, k)`` with ``k`` the pore index that fills first, or ``(inf, -1)``.
+    """
+    dt = _INF
+    k = -1
+    for i in filling:
+        if q[i] > 0.0:
+            t = (vol[i] - vol_nw[i]) / q[i]
+            if t < dt:
+                dt = t
+                k = i
+    if dt < 0.0:
+        dt = 0.0
+    return dt, k
+
+
+@jit
+def _apply_filling(vol_nw, vol, q, filling, dt, k):
+    """Advance the non-wetting volumes of ``filling`` pores by ``q * dt`` in place, capped at ``vol``.
+
+    Pore ``k`` (the one that set dt) is set exactly full. Returns the volume actually added, m³.
+    """
+    added = 0.0
+    for i in filling:
+        if q[i] > 0.0:
+            old = vol_nw[i]
+            if i == k:
+                new = vol[i]
+            else:
+                new = old + q[i] * dt
+                if new > vol[i]:
+                    new = vol[i]
+            vol_nw[i] = new
+            added += new - old
+    return added
+
+
+@jit
+def _most_violated(a, b, n, full, trapped, inv, closed, blocked, P, thr, pcb):
+    """Most violated constraint of the active set, for every edge in one pass.
+
+    An edge with exactly one non-wetting end ``u`` (a full pore or the inlet node ``n``) and a
+    non-full, non-trapped pore ``x`` at the other end is
+
+    - *pinned* (not ``inv``, or ``closed``): violated by ``P[u] - P[x] - T``, where ``T`` is the
+      entry threshold ``thr[e]`` (or ``pcb[x]`` for a stalled meniscus already in the body of x);
+      edges with ``blocked[e]`` are skipped;
+    - *active* (``inv`` and not ``closed``): violated by ``-(P[u] - P[x] - pcb[x])`` (backflow).
+
+    Returns ``(edge, excess, kind)`` with kind 1 = open, -1 = close, or ``(-1, -inf, 0)``.
+    """
+    best = -1
+    best_ex = -_INF
+    kind = 0
+    for e in range(a.shape[0]):
+        i = a[e]
+        j = b[e]
+        if j > n:  # outlet edge: never a meniscus constraint
+            continue
+        fi = True if i == n else full[i]
+        fj = full[j]
+        if fi == fj:
+            continue
+        if fi:
+            u = i
+            x = j
+        else:
+            u = j
+            x = i
+        if trapped[x]:
+            continue
+        d = P[u] - P[x]
+        if inv[e] and not closed[e]:
+            ex = -(d - pcb[x])
+            k = -1
+        else:
+            if blocked[e]:
+                continue
+            if inv[e]:
+                ex = d - pcb[x]
+            else:
+                ex = d - thr[e]
+            k = 1
+        if ex > best_ex:
+            best_ex = ex
+            best = e
+            kind = k
+    return best, best_ex, kind
+
+
+@jit
+def _trapped_from(seeds, indptr, nbr, full, trapped, is_outlet, key, stamp, mark):
+    """Find wetting clusters cut off from the outlet after some pores became full.
+
+    Best-first search (priority ``-key``, i.e. towards the outlet face) from every seed over
+    non-full, non-trapped pores; a search that reaches an outlet pore proves its cluster is
+    connected; a search that exhausts its cluster marks it trapped. ``stamp``/``mark`` are work
+    arrays (int64, length n) reused between calls; ``mark`` values below ``stamp`` are stale.
+
+    Returns the number of pores newly marked trapped (``trapped`` is updated in place).
+    """
+    n_new = 0
+    base = stamp[0]
+    # mark[v] == base + 1: reached-outlet set of this call; == base + 2 + s: visited by search s
+    ok = base + 1
+    for s in range(seeds.shape[0]):
+        v0 = seeds[s]
+        if full[v0] or trapped[v0] or mark[v0] == ok:
+            continue
+        tag = base + 2 + s
+        heap = [(-key[v0], v0)]
+        mark[v0] = tag
+        visited = [v0]
+        found = False
+        while len(heap) > 0:
+            item = heapq.heappop(heap)
+            v = item[1]
+            if is_outlet[v] or mark[v] == ok:
+                found = True
+                break
+            for p in range(indptr[v], indptr[v + 1]):
+                w = nbr[p]
+                if full[w] or trapped[w]:
+                    continue
+                if mark[w] == ok:
+                    found = True
+                    break
+                if mark[w] != tag:
+                    mark[w] = tag
+                    visited.append(w)
+                    heapq.heappush(heap, (-key[w], w))
+            if found:
+                break
+        if found:
+            for v in visited:
+                mark[v] = ok
+        else:
+            for v in visited:
+                trapped[v] = True
+            n_new += len(visited)
+    stamp[0] = base + 2 + seeds.shape[0]
+    return n_new
+
+
+@jit
+def _dijkstra_to_outlet(indptr, nbr, nbr_res, usable, out_res):
+    """Shortest-path resistance from every usable pore to the outlet node over usable pores.
+
+    ``nbr_res[p]`` is the wetting resistance of adjacency entry ``p``; ``out_res[v]`` is the
+    resistance from pore v to the outlet node (``inf`` when v is not an outlet pore). Returns
+    ``(dist, pred)`` where ``pred[v]`` is the next pore towards the outlet (``-1`` = outlet node).
+    """
+    n = indptr.shape[0] - 1
+    dist = np.full(n, _INF)
+    pred = np.full(n, -2, dtype=np.int64)
+    heap = [(0.0, np.int64(0))]
+    heap.pop()
+    for v in range(n):
+        if usable[v] and out_res[v] < _INF:
+            dist[v] = out_res[v]
+            pred[v] = -1
+            heapq.heappush(heap, (dist[v], np.int64(v)))
+    while len(heap) > 0:
+        dv, v = heapq.heappop(heap)
+        if dv > dist[v]:
+            continue
+        for p in range(indptr[v], indptr[v + 1]):
+            w = nbr[p]
+            if not usable[w]:
+                continue
+            nd = dv + nbr_res[p]
+            if nd < dist[w]:
+                dist[w] = nd
+                pred[w] = v
+                heapq.heappush(heap, (nd, np.int64(w)))
+    return dist, pred
+
+
+@jit
+def _path_usable(x, pred, usable, max_len):
+    """Whether the predecessor chain from pore ``x`` to the outlet still runs over usable pores."""
+    v = x
+    for _ in range(max_len + 1):
+        if v == -1:
+            return True
+        if v < 0 or not usable[v]:
+            return False
+        v = pred[v]
+    return False
