@@ -14,7 +14,7 @@ __all__ = ["Fluids", "PAPER_FLUIDS"]
 
 @dataclasses.dataclass(frozen=True)
 class Fluids:
-    """Wetting (displaced) and non-wetting (injected) fluid of a primary drainage, SI units.
+    r"""Wetting (displaced) and non-wetting (injected) fluid of a primary drainage, SI units.
 
     Parameters
     ----------
@@ -42,7 +42,7 @@ class Fluids:
     Young–Laplace entry pressure of a cylindrical throat of radius r, and the capillary pressure of
     a spherical pore body of radius R being filled:
 
-    .. math:: P_e = \\frac{2\\sigma\\cos\\theta}{r}, \\qquad P_{c,b} = \\frac{2\\sigma\\cos\\theta}{R}.
+    .. math:: P_e = \frac{2\sigma\cos\theta}{r}, \qquad P_{c,b} = \frac{2\sigma\cos\theta}{R}.
 
     Examples
     --------
