@@ -28,6 +28,10 @@ _LAZY = {
     "read_image": "porefsi.image.io",
     "write_image": "porefsi.image.io",
     "load_sample": "porefsi.image.io",
+    "segment": "porefsi.image.io",
+    "crop": "porefsi.image.ops",
+    "downsample": "porefsi.image.ops",
+    "percolating_cluster": "porefsi.image.ops",
     "extract_network": "porefsi.network.extract",
     "absolute_permeability": "porefsi.flow.permeability",
 }
