@@ -272,3 +272,15 @@ def test_result_is_frozen_and_input_untouched(rng):
     assert not res.pressure.flags.writeable
     for k, v in before.items():
         np.testing.assert_array_equal(getattr(net, k), v)
+
+
+def test_auto_solver_switches_to_cg_above_threshold(rng, monkeypatch):
+    import porefsi.flow.permeability as perm
+
+    net = lattice_network((6, 5, 4), rng=rng, drop=0.2)
+    ref = absolute_permeability(net, "x")
+    assert ref.info["solver"] == "spsolve"
+    monkeypatch.setattr(perm, "_DIRECT_MAX", 10)
+    res = absolute_permeability(net, "x")
+    assert res.info["solver"] == "cg+amg"
+    assert res.k_m2 == pytest.approx(ref.k_m2, rel=1e-10, abs=0)
