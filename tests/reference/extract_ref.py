@@ -1,0 +1,162 @@
+"""Naive pure-Python twins of the kernels in ``porefsi/network/_kernels.py``.
+
+Written for clarity, not speed (use on images of a few hundred voxels): brute-force distance
+map, explicit neighbour loops, Python dicts and deques. Each twin states the same definition as
+its kernel's docstring, independently coded.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from itertools import product
+
+import numpy as np
+
+INF = np.iinfo(np.int32).max
+
+
+def sq_edt(pore):
+    """Squared distance from each voxel centre to the nearest solid voxel centre (brute force)."""
+    solid = np.argwhere(pore == 0)
+    out = np.zeros(pore.shape, np.int64)
+    for ijk in np.argwhere(pore != 0):
+        if solid.size == 0:
+            out[tuple(ijk)] = INF
+        else:
+            out[tuple(ijk)] = int(((solid - ijk) ** 2).sum(axis=1).min())
+    return out
+
+
+def maximal_balls(dt2, min_dt2):
+    """Maximal-ball centres (radius descending, linear index ascending) and candidate count."""
+    shape = dt2.shape
+    found = []
+    ncand = 0
+    for ijk in product(*[range(s) for s in shape]):
+        dp = int(dt2[ijk])
+        if dp < min_dt2:
+            continue
+        ncand += 1
+        contained = False
+        for off in product((-1, 0, 1), repeat=3):
+            q = tuple(a + o for a, o in zip(ijk, off, strict=True))
+            if off == (0, 0, 0) or not all(0 <= q[a] < shape[a] for a in range(3)):
+                continue
+            dq = int(dt2[q])
+            if dq > dp and math.sqrt(dq) >= math.sqrt(dp) + math.sqrt(sum(o * o for o in off)) - 1e-9:
+                contained = True
+        if not contained:
+            found.append((-dp, int(np.ravel_multi_index(ijk, shape))))
+    found.sort()
+    return np.array([f[1] for f in found], dtype=np.int64), ncand
+
+
+def families(dt2, balls, extent, ratio):
+    """Ball hierarchy and painted labels (see ``_kernels._families``)."""
+    shape = dt2.shape
+    labels = -np.ones(shape, np.int64)
+    centres = [np.unravel_index(int(b), shape) for b in balls]
+    radius = [math.sqrt(dt2[c]) for c in centres]
+    master = []
+    for k, c in enumerate(centres):
+        d2 = int(dt2[c])
+        ball = [v for v in product(*[range(s) for s in shape]) if sum((v[a] - c[a]) ** 2 for a in range(3)) < d2]
+        owners = sorted({int(labels[v]) for v in ball if labels[v] >= 0})
+        chosen = None
+        for o in owners:  # ascending visit order = descending radius
+            m = master[o]
+            dist2 = sum((centres[m][a] - c[a]) ** 2 for a in range(3))
+            if dist2 < (extent * radius[m]) ** 2 or radius[k] < ratio * radius[m]:
+                chosen = o
+                break
+        if chosen is None:
+            master.append(k)
+            for v in ball:
+                labels[v] = k
+        else:
+            master.append(master[chosen])
+            for v in ball:
+                if labels[v] < 0:
+                    labels[v] = k
+    return np.array(master, dtype=np.int64), labels
+
+
+def fill_unlabelled(pore, labels):
+    """Multi-source BFS growth of labels into unlabelled pore voxels (see the kernel)."""
+    lab = labels.copy()
+    shape = pore.shape
+    offsets = [(-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)]
+
+    def neighbours(v):
+        for o in offsets:
+            q = (v[0] + o[0], v[1] + o[1], v[2] + o[2])
+            if all(0 <= q[a] < shape[a] for a in range(3)):
+                yield q
+
+    queue = deque()
+    seeds = {}
+    for v in product(*[range(s) for s in shape]):
+        if pore[v] and lab[v] == -1:
+            for q in neighbours(v):
+                if lab[q] >= 0:
+                    seeds[v] = int(lab[q])
+                    queue.append(v)
+                    break
+    for v, s in seeds.items():
+        lab[v] = s
+    n = len(queue)
+    while queue:
+        v = queue.popleft()
+        for q in neighbours(v):
+            if pore[q] and lab[q] == -1:
+                lab[q] = lab[v]
+                queue.append(q)
+                n += 1
+    return lab, n
+
+
+def interfaces(labels, dt2):
+    """Throats from label interfaces: conns, max min-dt2, first face attaining it, face count."""
+    shape = labels.shape
+    throats = {}
+    order = []
+    for v in product(*[range(s) for s in shape]):
+        la = int(labels[v])
+        if la < 0:
+            continue
+        for ax in range(3):
+            q = list(v)
+            q[ax] += 1
+            q = tuple(q)
+            if q[ax] >= shape[ax]:
+                continue
+            lb = int(labels[q])
+            if lb < 0 or lb == la:
+                continue
+            key = (min(la, lb), max(la, lb))
+            val = int(min(dt2[v], dt2[q]))
+            point = tuple(v[a] + 0.5 * (q[a] - v[a]) for a in range(3))
+            if key not in throats:
+                throats[key] = [val, point, 0]
+                order.append(key)
+            rec = throats[key]
+            rec[2] += 1
+            if val > rec[0]:
+                rec[0], rec[1] = val, point
+    conns = np.array(order, dtype=np.int64).reshape(-1, 2)
+    w = np.array([throats[k][0] for k in order], dtype=np.int64)
+    point = np.array([throats[k][1] for k in order], dtype=float).reshape(-1, 3)
+    nf = np.array([throats[k][2] for k in order], dtype=np.int64)
+    return conns, w, point, nf
+
+
+def pore_stats(labels, n_pores):
+    """Voxel counts and touched faces per pore, with numpy slicing."""
+    count = np.bincount(labels[labels >= 0].ravel(), minlength=n_pores)
+    faces = np.zeros((n_pores, 6), bool)
+    for ax in range(3):
+        for side, idx in ((0, 0), (1, labels.shape[ax] - 1)):
+            sl = np.take(labels, idx, axis=ax)
+            faces[np.unique(sl[sl >= 0]), 2 * ax + side] = True
+    return count, faces

@@ -1,0 +1,127 @@
+"""Each numba kernel of the maximal-ball extraction against its naive twin (tests/reference)."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy import ndimage
+
+from porefsi.network import _kernels as kern
+from porefsi.network.extract import digital_radius
+from tests.reference import extract_ref as ref
+
+SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+@st.composite
+def images(draw, max_side=7, p_min=0.3, p_max=0.9):
+    """Small random binary images with at least one solid voxel (distance map defined)."""
+    shape = tuple(draw(st.integers(1, max_side)) for _ in range(3))
+    p = draw(st.floats(p_min, p_max))
+    u = draw(arrays(np.float64, shape, elements=st.floats(0, 1, allow_nan=False)))
+    img = (u < p).astype(np.uint8)
+    img.reshape(-1)[draw(st.integers(0, img.size - 1))] = 0
+    return img
+
+
+def _edt(img):
+    out = np.empty(img.shape, np.int32)
+    kern._sq_edt(img, out)
+    return out
+
+
+@SETTINGS
+@given(images(max_side=9))
+def test_sq_edt_equals_brute_force_and_scipy(img):
+    d = _edt(img)
+    np.testing.assert_array_equal(d, ref.sq_edt(img))
+    # independent implementation: scipy measures the distance to the nearest 0 (solid) voxel
+    # centre and, like porefsi, does not treat the outside of the array as solid.
+    np.testing.assert_array_equal(d, np.rint(ndimage.distance_transform_edt(img) ** 2).astype(np.int64))
+
+
+def test_sq_edt_line_without_solid_is_inf():
+    img = np.ones((3, 1, 1), np.uint8)
+    assert np.all(_edt(img) == kern.INF)
+
+
+@SETTINGS
+@given(images(), st.integers(1, 4))
+def test_maximal_balls_equal_twin(img, min_dt2):
+    d = _edt(img)
+    tab = np.sqrt(np.arange(d.max() + 1, dtype=float))
+    order, ncand = kern._maximal_balls(d, np.int64(min_dt2), tab)
+    order_ref, ncand_ref = ref.maximal_balls(d, min_dt2)
+    assert ncand == ncand_ref == int(np.count_nonzero(d >= min_dt2))
+    np.testing.assert_array_equal(order, order_ref)
+
+
+@SETTINGS
+@given(images(max_side=6, p_min=0.6, p_max=0.95), st.sampled_from([1.0, 1.5, 2.0, 3.0]), st.sampled_from([0.0, 0.9]))
+def test_families_equal_twin(img, extent, ratio):
+    d = _edt(img)
+    tab = np.sqrt(np.arange(d.max() + 1, dtype=float))
+    balls, _ = kern._maximal_balls(d, np.int64(1), tab)
+    labels = np.full(img.shape, -1, np.int32)
+    master = kern._families(d, balls, tab, extent, ratio, labels)
+    master_ref, labels_ref = ref.families(d, balls, extent, ratio)
+    np.testing.assert_array_equal(master, master_ref)
+    np.testing.assert_array_equal(labels, labels_ref)
+    # properties: masters are their own master; a master owns its centre voxel
+    for k in np.flatnonzero(master == np.arange(balls.size)):
+        assert labels.reshape(-1)[balls[k]] == k
+
+
+@SETTINGS
+@given(images(max_side=8, p_min=0.5, p_max=0.95), st.integers(0, 2**32 - 1))
+def test_fill_unlabelled_equals_twin(img, seed):
+    rng = np.random.default_rng(seed)
+    labels = np.where((img == 1) & (rng.random(img.shape) < 0.15), rng.integers(0, 4, img.shape), -1)
+    labels = labels.astype(np.int32)
+    got = labels.copy()
+    n = kern._fill_unlabelled(img, got)
+    want, n_ref = ref.fill_unlabelled(img, labels)
+    assert n == n_ref
+    np.testing.assert_array_equal(got, want)
+    # every pore voxel connected to a seed is labelled; solid voxels never are
+    assert np.all(got[img == 0] == -1)
+    lab, _ = ndimage.label(img)
+    seeded = np.unique(lab[labels >= 0])
+    assert np.all(got[np.isin(lab, seeded) & (img == 1)] >= 0)
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.tuples(*[st.integers(1, 6)] * 3), st.integers(1, 5))
+def test_interfaces_and_pore_stats_equal_twin(seed, shape, n_pores):
+    rng = np.random.default_rng(seed)
+    labels = rng.integers(-1, n_pores, shape).astype(np.int32)
+    dt2 = rng.integers(1, 30, shape).astype(np.int32)
+    conns, w, point, nf = kern._interfaces(labels, dt2, np.int64(n_pores))
+    c_ref, w_ref, p_ref, nf_ref = ref.interfaces(labels, dt2)
+    np.testing.assert_array_equal(conns.reshape(-1, 2), c_ref)
+    np.testing.assert_array_equal(w, w_ref)
+    np.testing.assert_array_equal(point.reshape(-1, 3), p_ref)
+    np.testing.assert_array_equal(nf, nf_ref)
+    assert np.all(conns[:, 0] < conns[:, 1])  # canonical, no self-loops
+    count, faces = kern._pore_stats(labels, np.int64(n_pores))
+    count_ref, faces_ref = ref.pore_stats(labels, n_pores)
+    np.testing.assert_array_equal(count, count_ref)
+    np.testing.assert_array_equal(faces, faces_ref)
+
+
+def test_digital_radius_midpoint_of_lattice_shells():
+    # brute-force sums of three squares up to 200
+    sums = sorted({a * a + b * b + c * c for a in range(15) for b in range(15) for c in range(15)})
+    n = np.arange(1, 200)
+    got = digital_radius(n)
+    for ni, r in zip(n, got, strict=True):
+        prev = max(s for s in sums if s < ni)
+        assert r == pytest.approx(0.5 * (math.sqrt(ni) + math.sqrt(prev)), rel=1e-14)
+    assert digital_radius(1) == 0.5  # one-voxel channel: half a voxel
+    # integer-radius discretised balls: R < r < R + 1/(2R) (sqrt(R^2 + 1) ~ R + 1/(2R))
+    R = np.arange(1, 40)
+    r = digital_radius(R * R + 1)
+    assert np.all((r > R) & (r < R + 0.5 / R))
