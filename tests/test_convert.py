@@ -214,29 +214,68 @@ def test_statoil_reader_errors(rng, tmp_path):
 
 
 # --- VTP ----------------------------------------------------------------------------------------
-def test_vtp_round_trip_with_pyvista(rng, tmp_path):
+@pytest.mark.parametrize("tubes", [True, False])
+def test_vtp_round_trip_with_pyvista(rng, tmp_path, tubes):
     pv = pytest.importorskip("pyvista")
     net = random_network(rng, 9, 14)
-    pressure = rng.uniform(0, 1e4, net.n_pores)
-    flux = rng.normal(size=net.n_throats)
+    n_p, n_t = net.n_pores, net.n_throats
+    pressure = rng.uniform(0, 1e4, n_p)
+    flux = rng.normal(size=n_t)
     p = write_network_vtp(net, tmp_path / "net", point_data={"pressure": pressure},
-                          cell_data={"flow_rate": flux, "open": np.arange(net.n_throats) % 2 == 0})
+                          cell_data={"flow_rate": flux, "open": np.arange(n_t) % 2 == 0}, tubes=tubes)
     assert p.suffix == ".vtp"
     m = pv.read(p)
-    assert m.n_points == net.n_pores and m.n_cells == net.n_pores + net.n_throats
-    np.testing.assert_array_equal(m.points, net.pore_coords)
-    np.testing.assert_array_equal(m.point_data["radius"], net.pore_radius)
-    np.testing.assert_array_equal(m.point_data["pressure"], pressure)
-    np.testing.assert_array_equal(m.point_data["xmax"], net.pore_faces[:, 1])
-    np.testing.assert_array_equal(m.verts.reshape(-1, 2)[:, 1], np.arange(net.n_pores))
-    np.testing.assert_array_equal(m.lines.reshape(-1, 3)[:, 1:], net.throat_conns)
+    assert m.n_cells == n_p + n_t
+    assert m.n_points == (n_p + 2 * n_t if tubes else n_p)
+    # Pores: the first Np points, one vertex cell each, with their own values.
+    np.testing.assert_array_equal(m.points[:n_p], net.pore_coords)
+    np.testing.assert_array_equal(m.verts.reshape(-1, 2)[:, 1], np.arange(n_p))
+    np.testing.assert_array_equal(m.point_data["radius"][:n_p], net.pore_radius)
+    np.testing.assert_array_equal(m.point_data["pressure"][:n_p], pressure)
+    np.testing.assert_array_equal(m.point_data["xmax"][:n_p], net.pore_faces[:, 1])
+    # Throats: lines between the pore centres; every point knows its pore.
+    lines = m.lines.reshape(-1, 3)[:, 1:]
+    pore_of = m.point_data["pore_index"]
+    np.testing.assert_array_equal(pore_of[lines], net.throat_conns)
+    np.testing.assert_array_equal(m.points[lines], net.pore_coords[net.throat_conns])
+    np.testing.assert_array_equal(m.point_data["pressure"], pressure[pore_of])
+    if tubes:  # both ends of a line carry the throat radius: Tube draws the throat at its radius
+        np.testing.assert_array_equal(m.point_data["radius"][lines], np.column_stack([net.throat_radius] * 2))
+        np.testing.assert_array_equal(m.point_data["is_throat"], np.r_[np.zeros(n_p), np.ones(2 * n_t)])
     np.testing.assert_array_equal(m.cell_data["radius"], np.r_[net.pore_radius, net.throat_radius])
-    np.testing.assert_array_equal(m.cell_data["flow_rate"][net.n_pores:], flux)
-    assert np.all(np.isnan(m.cell_data["flow_rate"][: net.n_pores]))
-    np.testing.assert_array_equal(m.cell_data["open"][net.n_pores:], np.arange(net.n_throats) % 2 == 0)
-    np.testing.assert_array_equal(m.cell_data["is_throat"], np.r_[np.zeros(net.n_pores), np.ones(net.n_throats)])
-    np.testing.assert_allclose(m.cell_data["length"][net.n_pores:],
+    np.testing.assert_array_equal(m.cell_data["flow_rate"][n_p:], flux)
+    assert np.all(np.isnan(m.cell_data["flow_rate"][:n_p]))
+    np.testing.assert_array_equal(m.cell_data["open"][n_p:], np.arange(n_t) % 2 == 0)
+    np.testing.assert_array_equal(m.cell_data["is_throat"], np.r_[np.zeros(n_p), np.ones(n_t)])
+    np.testing.assert_allclose(m.cell_data["length"][n_p:],
                                net.throat_length + net.throat_pore_length.sum(1), rtol=1e-15)
+
+
+def test_vtp_tubes_and_spheres_render_with_pyvista_filters(rng, tmp_path):
+    """The ParaView recipe of the docstring, done with the same VTK filters through pyvista."""
+    pv = pytest.importorskip("pyvista")
+    net = random_network(rng, 6, 8)
+    m = pv.read(write_network_vtp(net, tmp_path / "n.vtp"))
+    spheres = m.glyph(geom=pv.Sphere(radius=1.0, theta_resolution=24, phi_resolution=24), scale="radius",
+                      orient=False)
+    tubes = m.extract_cells(np.arange(net.n_pores, m.n_cells)).extract_surface(algorithm=None).tube(
+        scalars="radius", absolute=True, n_sides=24, capping=False)
+    # Every tube point lies at the throat radius from its throat axis (within the polygon's chord error).
+    a, b = net.pore_coords[net.throat_conns[:, 0]], net.pore_coords[net.throat_conns[:, 1]]
+    pts = tubes.points
+    u = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
+    d = pts[:, None, :] - a[None]
+    along = np.einsum("ptk,tk->pt", d, u)
+    dist = np.linalg.norm(d - along[..., None] * u[None], axis=2)
+    on_axis = (along >= -1e-12) & (along <= np.linalg.norm(b - a, axis=1) + 1e-12)
+    err = np.where(on_axis, np.abs(dist - net.throat_radius[None]) / net.throat_radius[None], np.inf).min(axis=1)
+    assert np.max(err) < 1e-6
+    # The largest sphere around each pore centre is the pore's own (throat-end spheres are smaller).
+    assert spheres.n_points > 0
+    for i in range(net.n_pores):
+        r = np.linalg.norm(spheres.points - net.pore_coords[i], axis=1)
+        near = r[r <= net.pore_radius[i] * (1 + 1e-6)]
+        assert near.max() == pytest.approx(net.pore_radius[i], rel=1e-6, abs=0)
 
 
 def test_vtp_rejects_bad_arrays(rng, tmp_path):

@@ -1,6 +1,7 @@
 """ParaView-ready VTK XML PolyData (``.vtp``) of a pore network.
 
-Pores are points (one VTK_VERTEX cell each) and throats are lines between them. Radii, volumes,
+Pores are points (one VTK_VERTEX cell each) and throats are lines between them, laid out so
+that ParaView's Glyph (spheres) and Tube filters draw every pore and throat at its own radius. Radii, volumes,
 lengths and boundary labels travel as point and cell arrays, together with any per-pore or
 per-throat arrays the caller adds (pressure, saturation, ...).
 
@@ -83,6 +84,8 @@ def write_network_vtp(
     path: str | os.PathLike,
     point_data: Mapping[str, np.ndarray] | None = None,
     cell_data: Mapping[str, np.ndarray] | None = None,
+    *,
+    tubes: bool = True,
 ) -> Path:
     """Write ``net`` as a ParaView-ready ``.vtp`` file: pores as points, throats as lines.
 
@@ -96,6 +99,10 @@ def write_network_vtp(
     cell_data : mapping of str to ndarray, shape (Nt,) or (Nt, k), optional
         Extra per-throat arrays (e.g. ``flow_rate`` in m³/s). In the file they are cell arrays of
         length Np + Nt: NaN on the Np pore (vertex) cells, the values on the Nt throat (line) cells.
+    tubes : bool, default True
+        Give every throat line its own two end points (at its pores' centres) so that point data
+        can carry the throat radius along the line: ParaView's Tube filter then draws every
+        throat with its own radius. With ``False`` the lines share the pore points (Np points).
 
     Returns
     -------
@@ -104,18 +111,25 @@ def write_network_vtp(
 
     Notes
     -----
-    Geometry: ``Np`` points at the pore centres (m); ``Np`` vertex cells (pore ``i`` is cell
-    ``i``), then ``Nt`` line cells (throat ``t`` is cell ``Np + t``, joining its two pores).
+    Geometry: points ``0 .. Np-1`` are the pore centres (m), one vertex cell each (pore ``i`` is
+    cell ``i``); then ``Nt`` line cells (throat ``t`` is cell ``Np + t``). With ``tubes`` the
+    line of throat ``t`` joins points ``Np + 2t`` and ``Np + 2t + 1``, copies of its two pore
+    centres (``conns[t, 0]`` then ``conns[t, 1]``); otherwise it joins the pore points.
 
-    Point arrays: ``radius`` (m, inscribed), ``volume`` (m³), ``coordination``, ``pore_index`` and
-    one ``UInt8`` array per box face (``xmin`` ... ``zmax``).
+    Point arrays: ``radius`` (m: the pore's inscribed radius on pore points, the throat radius on
+    throat end points), ``is_throat`` (0/1), ``pore_index`` (the pore a point sits at),
+    ``volume`` (m³), ``coordination`` and one ``UInt8`` array per box face (``xmin`` ...
+    ``zmax``) of that pore, and the ``point_data`` arrays (a throat end point takes the value of
+    the pore it sits at).
     Cell arrays: ``radius`` (pore radius on vertex cells, throat radius on line cells, m),
     ``length`` (0 on vertex cells; conduit length centre to centre on line cells, m),
     ``volume`` (m³, pore or throat), ``is_throat`` (0/1) and ``index`` (pore or throat index).
 
-    In ParaView: spheres with Glyph (Glyph Type Sphere, Scale Array ``radius`` (points), Scale
-    Factor 2 with the default sphere radius 0.5); throats with Threshold ``is_throat`` = 1 then
-    Tube, or colour the lines by the cell array ``radius``.
+    In ParaView: spheres with Glyph (Glyph Type Sphere, Scale Array ``radius``, Scale Factor 2
+    since the default sphere has radius 0.5, Glyph Mode All Points: the spheres drawn at throat
+    end points have the throat radius <= the pore radius and stay hidden inside the pore's
+    sphere); throats with Tube (Vary Radius By Absolute Scalar, Scalars ``radius``, Radius
+    Factor 1) on the same file.
     """
     p = Path(path)
     if p.suffix.lower() != ".vtp":
@@ -123,19 +137,29 @@ def write_network_vtp(
     if not p.parent.exists():
         raise InputError(f"cannot write {p}: folder {p.parent} does not exist; create it first")
     n_p, n_t = net.n_pores, net.n_throats
-    pdata = {
-        "radius": net.pore_radius,
+    conns = net.throat_conns.astype(np.int64)
+    # Pore of every point: the pores themselves, then (tubes) the two ends of every throat.
+    at = np.concatenate([np.arange(n_p), conns.ravel()]) if tubes else np.arange(n_p)
+    on_throat = np.arange(at.size) >= n_p
+    pore_vals = {
         "volume": net.pore_volume,
         "coordination": net.coordination.astype(np.int64),
-        "pore_index": np.arange(n_p, dtype=np.int64),
+        **{name: net.pore_faces[:, k] for k, name in enumerate(FACES)},
     }
-    for k, name in enumerate(FACES):
-        pdata[name] = net.pore_faces[:, k]
     extra_p = _user_arrays(point_data, n_p, "pore")
-    clash = sorted(set(extra_p) & set(pdata))
+    clash = sorted(set(extra_p) & ({"radius", "is_throat", "pore_index"} | set(pore_vals)))
     if clash:
         raise InputError(f"point_data names {clash} are reserved by the network arrays; rename them")
-    pdata.update(extra_p)
+    pore_vals.update(extra_p)
+    pdata = {
+        "radius": np.concatenate([net.pore_radius, np.repeat(net.throat_radius, 2)]) if tubes
+        else net.pore_radius,
+        "is_throat": on_throat.astype(np.uint8),
+        "pore_index": at,
+        **{k: v[at] for k, v in pore_vals.items()},
+    }
+    points = net.pore_coords[at]
+    line_conn = np.arange(n_p, n_p + 2 * n_t, dtype=np.int64) if tubes else conns.ravel()
     total_len = net.throat_length + net.throat_pore_length.sum(axis=1)
     cdata = {
         "radius": np.concatenate([net.pore_radius, net.throat_radius]),
@@ -159,7 +183,7 @@ def write_network_vtp(
         '<?xml version="1.0"?>\n',
         '<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n',
         "<PolyData>\n",
-        f'<Piece NumberOfPoints="{n_p}" NumberOfVerts="{n_p}" NumberOfLines="{n_t}" '
+        f'<Piece NumberOfPoints="{points.shape[0]}" NumberOfVerts="{n_p}" NumberOfLines="{n_t}" '
         'NumberOfStrips="0" NumberOfPolys="0">\n',
         '<PointData Scalars="radius">\n',
         *(_data_array(v, k) for k, v in pdata.items()),
@@ -168,14 +192,14 @@ def write_network_vtp(
         *(_data_array(v, k) for k, v in cdata.items()),
         "</CellData>\n",
         "<Points>\n",
-        _data_array(net.pore_coords, "Points"),
+        _data_array(points, "Points"),
         "</Points>\n",
         "<Verts>\n",
         _data_array(np.arange(n_p, dtype=np.int64), "connectivity"),
         _data_array(np.arange(1, n_p + 1, dtype=np.int64), "offsets"),
         "</Verts>\n",
         "<Lines>\n",
-        _data_array(net.throat_conns.astype(np.int64).ravel(), "connectivity"),
+        _data_array(line_conn, "connectivity"),
         _data_array(2 * np.arange(1, n_t + 1, dtype=np.int64), "offsets"),
         "</Lines>\n",
         "</Piece>\n</PolyData>\n</VTKFile>\n",
