@@ -70,11 +70,16 @@ def newton(
         if len(history) > max_iter:
             break
         A = jacobian(x)
-        if A is not A_last or solve is None:
-            solve, A_last = make_solver(A), A
-            n_fact += 1
-        dx = -solve(r)
+        try:
+            if A is not A_last or solve is None:
+                solve, A_last = make_solver(A), A
+                n_fact += 1
+            dx = -solve(r)
+        except (RuntimeError, ArithmeticError, ValueError) as err:  # singular / failed linear solve
+            raise ConvergenceError(f"{what}: linear solve failed ({err}); the tangent is singular", history) from err
         n_solves += 1
+        if not np.all(np.isfinite(dx)):
+            raise ConvergenceError(f"{what}: Newton update is not finite; the tangent is singular", history)
         alpha = 1.0
         while True:
             x_try = x + alpha * dx

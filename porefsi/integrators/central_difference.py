@@ -28,6 +28,7 @@ from porefsi.integrators._common import (
     check_state,
     check_time,
     default_solver,
+    same_state,
 )
 from porefsi.integrators.system import SecondOrderSystem, SolverFactory
 
@@ -95,7 +96,7 @@ class CentralDifferenceStepper:
         last = self._last
         if a is not None:
             a = check_state("a", a, n)
-        elif last is not None and last[0] == t and np.array_equal(last[1], u) and np.array_equal(last[2], v):
+        elif same_state(last, u, v, t, self.dt):
             a = last[3]
         else:
             a = self._mass.solve(sys.external_force(t) - sys.internal_force(u, t))

@@ -32,6 +32,7 @@ from porefsi.integrators._common import (
     check_state,
     check_time,
     default_solver,
+    same_state,
 )
 from porefsi.integrators._newton import newton
 from porefsi.integrators.system import SecondOrderSystem, SolverFactory
@@ -94,7 +95,7 @@ class GeneralizedAlphaStepper:
         if a is not None:
             return check_state("a", a, self._n)
         last = self._last
-        if last is not None and last[0] == t and np.array_equal(last[1], u) and np.array_equal(last[2], v):
+        if same_state(last, u, v, t, self.dt):
             return last[3]
         return self._mass.solve(self.system.external_force(t) - self.system.internal_force(u, t))
 

@@ -63,6 +63,10 @@ class TDGExactStepper:
         Newton tolerance on the block residual, relative to its largest term.
     max_iter : int, default 30
         Newton iterations.
+    load_rule : {"left", "right"}, default "left"
+        Load samples at :math:`t, t+2\Delta t/3` (left Radau, the paper's) or
+        :math:`t+\Delta t/3, t+\Delta t` (right Radau: :math:`L_0 = f_{1/3}/2`,
+        :math:`L_1 = (f_{1/3}+f_1)/4`), as in :class:`~porefsi.integrators.TDGStepper`.
 
     Notes
     -----
@@ -70,7 +74,12 @@ class TDGExactStepper:
     tests and small studies, not for production meshes.
     """
 
-    def __init__(self, system: SecondOrderSystem, dt: float, rtol: float = 1e-11, max_iter: int = 30):
+    def __init__(
+        self, system: SecondOrderSystem, dt: float, rtol: float = 1e-11, max_iter: int = 30, load_rule: str = "left"
+    ):
+        if load_rule not in ("left", "right"):
+            raise InputError(f"load_rule={load_rule!r} is not one of ('left', 'right')")
+        self.load_rule = load_rule
         if not isinstance(system, SecondOrderSystem):
             raise InputError(f"system {type(system).__name__} does not implement SecondOrderSystem")
         self.system = system
@@ -83,7 +92,9 @@ class TDGExactStepper:
         self._cache = None
 
     def load_times(self, t: float) -> tuple[float, float]:
-        """Load sampling times ``t`` and ``t + 2 dt / 3`` (left Radau abscissae)."""
+        """Load sampling times (left Radau ``t, t + 2 dt / 3`` or right Radau ``t + dt/3, t + dt``)."""
+        if self.load_rule == "right":
+            return (t + self.dt / 3.0, t + self.dt)
         return (t, t + 2.0 * self.dt / 3.0)
 
     def step(self, u, v, t: float, loads=None) -> tuple[np.ndarray, np.ndarray, StepInfo]:
@@ -96,7 +107,10 @@ class TDGExactStepper:
             loads = tuple(sys.external_force(s) for s in self.load_times(t))
         f0 = check_state("loads[0]", loads[0], n)
         f23 = check_state("loads[1]", loads[1], n)
-        L0, L1 = 0.25 * (f0 + f23), 0.5 * f23
+        if self.load_rule == "left":
+            L0, L1 = 0.25 * (f0 + f23), 0.5 * f23
+        else:
+            L0, L1 = 0.5 * f0, 0.25 * (f0 + f23)
         Mv = M @ v
         t13, t1 = t + dt / 3.0, t + dt
 
