@@ -230,9 +230,12 @@ class Engine:
             return
         p_up = g.pcb[x] + self.rate * (self.tree_res[u] + 1.0 / g.gn[e] + dw)
         zero = np.zeros(g.n + 1)
-        nob = np.zeros(g.n_edges, dtype=bool)
-        e2, ex, _ = kern._most_violated(g.a, g.b, g.n, self.full, self.trapped, self.inv, self.closed, nob,
-                                     zero, g.thr, g.pcb)
+        skip_e = np.zeros(g.n_edges, dtype=bool)
+        skip_e[e] = True  # the one active meniscus: exclude it from the pinned candidates
+        closed = self.closed.copy()
+        closed[e] = True
+        e2, ex, _ = kern._most_violated(g.a, g.b, g.n, self.full, self.trapped, self.inv, closed, skip_e,
+                                        zero, g.thr, g.pcb)
         thr_min = -ex if e2 >= 0 else np.inf
         if p_up < thr_min * (1.0 - 1e-9):
             self.q = np.zeros(g.n)

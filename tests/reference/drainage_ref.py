@@ -1,0 +1,71 @@
+"""Naive pure-Python twins of porefsi.flow._kernels (clarity over speed)."""
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components, dijkstra
+
+
+def filling_step(vol_nw, vol, q, filling):
+    times = [(vol[i] - vol_nw[i]) / q[i] for i in filling if q[i] > 0]
+    if not times:
+        return np.inf, -1
+    k = [i for i in filling if q[i] > 0][int(np.argmin(times))]
+    return max(min(times), 0.0), k
+
+
+def apply_filling(vol_nw, vol, q, filling, dt, k):
+    out = vol_nw.copy()
+    for i in filling:
+        if q[i] > 0:
+            out[i] = vol[i] if i == k else min(vol_nw[i] + q[i] * dt, vol[i])
+    return out
+
+
+def most_violated(a, b, n, full, trapped, inv, closed, blocked, P, thr, pcb):
+    cands = []
+    for e in range(len(a)):
+        i, j = a[e], b[e]
+        if j > n:
+            continue
+        fi = True if i == n else bool(full[i])
+        fj = bool(full[j])
+        if fi == fj:
+            continue
+        u, x = (i, j) if fi else (j, i)
+        if trapped[x]:
+            continue
+        d = P[u] - P[x]
+        if inv[e] and not closed[e]:
+            cands.append((-(d - pcb[x]), e, -1))
+        elif not blocked[e]:
+            cands.append(((d - pcb[x]) if inv[e] else (d - thr[e]), e, 1))
+    if not cands:
+        return -1, -np.inf, 0
+    ex = max(c[0] for c in cands)
+    first = next(c for c in cands if c[0] == ex)
+    return first[1], ex, first[2]
+
+
+def trapped_after(indptr, nbr, full, trapped, is_outlet):
+    """Pores of wetting clusters (non-full, non-trapped) with no outlet pore: connected components."""
+    n = len(full)
+    usable = ~full & ~trapped
+    rows = np.repeat(np.arange(n), np.diff(indptr))
+    m = usable[rows] & usable[nbr]
+    A = sp.coo_array((np.ones(m.sum()), (rows[m], nbr[m])), shape=(n, n))
+    _, lab = connected_components(A, directed=False)
+    good = np.unique(lab[usable & is_outlet])
+    return trapped | (usable & ~np.isin(lab, good))
+
+
+def dijkstra_to_outlet(indptr, nbr, nbr_res, usable, out_res):
+    n = len(indptr) - 1
+    rows = np.repeat(np.arange(n), np.diff(indptr))
+    m = usable[rows] & usable[nbr]
+    src = np.concatenate([rows[m], np.full(n, n)])
+    dst = np.concatenate([nbr[m], np.arange(n)])
+    w = np.concatenate([nbr_res[m], np.where(usable, out_res, np.inf)])
+    ok = np.isfinite(w)
+    A = sp.coo_array((w[ok], (src[ok], dst[ok])), shape=(n + 1, n + 1)).tocsr()
+    d = dijkstra(A, directed=False, indices=n)
+    return d[:n]

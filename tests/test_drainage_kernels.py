@@ -1,0 +1,83 @@
+"""Numba kernels of the drainage model against their naive twins (tests/reference/drainage_ref.py)."""
+
+import numpy as np
+
+from porefsi.flow import _kernels as kern
+from porefsi.flow._drainage_graph import build_graph
+from porefsi.flow.fluids import Fluids
+from porefsi.network.lattice import lattice_network
+from tests.reference import drainage_ref as ref
+
+
+def _graph(rng, shape=(6, 5, 3)):
+    return build_graph(lattice_network(shape, 1e-4, rng), Fluids(), "x")
+
+
+def test_filling_step_and_apply_match_twin(rng):
+    for _ in range(20):
+        n = 30
+        vol = rng.uniform(1, 2, n)
+        vn = vol * rng.uniform(0, 1, n)
+        q = np.where(rng.random(n) < 0.5, rng.uniform(0, 1, n), 0.0)
+        filling = np.flatnonzero(rng.random(n) < 0.7)
+        dt, k = kern._filling_step(vn, vol, q, filling)
+        dt_r, k_r = ref.filling_step(vn, vol, q, filling)
+        assert k == k_r and dt == dt_r
+        if k >= 0:
+            v = vn.copy()
+            kern._apply_filling(v, vol, q, filling, dt, k)
+            np.testing.assert_array_equal(v, ref.apply_filling(vn, vol, q, filling, dt, k))
+            assert v[k] == vol[k] and np.all(v <= vol)
+
+
+def test_most_violated_matches_twin(rng):
+    g = _graph(rng)
+    n, E = g.n, g.n_edges
+    for _ in range(20):
+        full = rng.random(n) < 0.4
+        trapped = ~full & (rng.random(n) < 0.1)
+        inv = rng.random(E) < 0.5
+        closed = rng.random(E) < 0.2
+        blocked = rng.random(E) < 0.2
+        P = rng.uniform(0, 2e4, n + 1)
+        got = kern._most_violated(g.a, g.b, n, full, trapped, inv, closed, blocked, P, g.thr, g.pcb)
+        want = ref.most_violated(g.a, g.b, n, full, trapped, inv, closed, blocked, P, g.thr, g.pcb)
+        assert got[0] == want[0] and got[2] == want[2]
+        assert got[1] == want[1]
+
+
+def test_trapping_search_matches_connected_components(rng):
+    g = _graph(rng, (7, 7, 1))
+    n = g.n
+    for _ in range(30):
+        full = rng.random(n) < 0.45
+        trapped = np.zeros(n, dtype=bool)
+        seeds = np.flatnonzero(~full)
+        got = trapped.copy()
+        kern._trapped_from(seeds, g.indptr, g.nbr, full, got, g.is_outlet, g.key, np.zeros(1, np.int64),
+                           np.zeros(n, np.int64))
+        np.testing.assert_array_equal(got, ref.trapped_after(g.indptr, g.nbr, full, trapped, g.is_outlet))
+
+
+def test_dijkstra_and_path_check_match_twin(rng):
+    g = _graph(rng)
+    n = g.n
+    res = 1.0 / g.gw[g.nbr_edge]
+    for _ in range(5):
+        usable = rng.random(n) < 0.8
+        dist, pred = kern._dijkstra_to_outlet(g.indptr, g.nbr, res, usable, g.out_res_w)
+        want = ref.dijkstra_to_outlet(g.indptr, g.nbr, res, usable, g.out_res_w)
+        np.testing.assert_allclose(dist, want, rtol=1e-12)
+        for x in np.flatnonzero(np.isfinite(dist))[:10]:
+            assert kern._path_usable(x, pred, usable, n)
+            # walking the chain adds up the distance
+            v, tot = x, 0.0
+            while pred[v] != -1:
+                w = pred[v]
+                p = g.indptr[v] + np.flatnonzero(g.nbr[g.indptr[v]:g.indptr[v + 1]] == w)[0]
+                tot += res[p]
+                v = w
+            assert tot + g.out_res_w[v] == np.float64(dist[x]) or abs(tot + g.out_res_w[v] - dist[x]) <= 1e-12 * dist[x]
+            blocked = usable.copy()
+            blocked[x] = False
+            assert not kern._path_usable(x, pred, blocked, n)
