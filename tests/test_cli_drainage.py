@@ -1,0 +1,56 @@
+"""`porefsi drainage` through main(argv)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from porefsi.cli import main
+from porefsi.network.lattice import lattice_network
+
+convert = pytest.importorskip("porefsi.network.convert")
+
+
+@pytest.fixture
+def net_file(tmp_path, rng):
+    net = lattice_network((6, 5, 3), 1e-4, rng)
+    return net, convert.save_network(net, tmp_path / "net.npz")
+
+
+def test_cli_drainage_writes_outputs_and_json(net_file, tmp_path, capsys):
+    net, path = net_file
+    out = tmp_path / "out"
+    rate = 1e-12
+    code = main(["drainage", str(path), "--rate", str(rate), "--t-end", "20", "-o", str(out), "--json",
+                 "--snapshots", "2"])
+    assert code == 0
+    s = json.loads(capsys.readouterr().out)
+    for k in ("breakthrough_time_s", "final_sw", "n_events", "n_solves", "mass_balance_error", "seconds"):
+        assert k in s
+    assert s["mass_balance_error"] <= 1e-12
+    assert 0 <= s["final_sw"] <= 1
+    hist = np.genfromtxt(out / "drainage.csv", delimiter=",", names=True)
+    assert hist["time_s"][-1] == pytest.approx(20.0)
+    # volume bookkeeping in the file: injected = rate * t (constant rate)
+    np.testing.assert_allclose(hist["injected_m3"], rate * hist["time_s"], rtol=1e-10, atol=1e-30)
+    lines = (out / "invasion.csv").read_text().splitlines()
+    assert lines[0] == "pore,time_s" and len(lines) == net.n_pores + 1
+    assert any(line.endswith(",") for line in lines[1:]) or s["final_sw"] == 0
+    snaps = sorted(out.glob("snapshot_*.csv"))
+    assert len(snaps) == 2
+    snap = np.genfromtxt(snaps[-1], delimiter=",", names=True)
+    assert np.all((snap["nw_saturation"] >= 0) & (snap["nw_saturation"] <= 1))
+
+
+@pytest.mark.parametrize("argv, msg", [
+    (["--rate", "0"], "positive"),
+    (["--rate=-1e-12"], "positive"),
+    (["--theta", "95"], "contact angle"),
+    (["--sigma", "0"], "positive"),
+    (["--axis", "z", "--mu-n=-1"], "positive"),
+])
+def test_cli_drainage_bad_input_is_a_one_line_error(net_file, capsys, argv, msg):
+    _, path = net_file
+    code = main(["drainage", str(path), *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and msg in err
