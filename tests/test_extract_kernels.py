@@ -27,9 +27,10 @@ def images(draw, max_side=7, p_min=0.3, p_max=0.9):
     return img
 
 
-def _edt(img):
-    out = np.empty(img.shape, np.int32)
-    kern._sq_edt(img, out)
+def _edt(img, dtype=np.uint16, cap=None):
+    """The distance map as extract_network computes it (uint16 unless a radius reaches 256)."""
+    out = np.empty(img.shape, dtype)
+    kern._sq_edt(img, out, int(np.iinfo(dtype).max if cap is None else cap))
     return out
 
 
@@ -37,24 +38,41 @@ def _edt(img):
 @given(images(max_side=9))
 def test_sq_edt_equals_brute_force_and_scipy(img):
     d = _edt(img)
-    np.testing.assert_array_equal(d, ref.sq_edt(img))
+    want = ref.sq_edt(img)
+    np.testing.assert_array_equal(d, want)
+    np.testing.assert_array_equal(_edt(img, np.int32), want)
     # independent implementation: scipy measures the distance to the nearest 0 (solid) voxel
     # centre and, like porefsi, does not treat the outside of the array as solid.
     np.testing.assert_array_equal(d, np.rint(ndimage.distance_transform_edt(img) ** 2).astype(np.int64))
 
 
+@SETTINGS
+@given(images(max_side=9, p_min=0.7, p_max=0.95), st.integers(1, 12))
+def test_sq_edt_cap_is_exact_below_the_cap(img, cap):
+    # the uint16 map caps squared distances; every value below the cap must stay exact
+    want = np.minimum(ref.sq_edt(img), cap)
+    np.testing.assert_array_equal(_edt(img, np.uint16, cap), want)
+
+
 def test_sq_edt_line_without_solid_is_inf():
     img = np.ones((3, 1, 1), np.uint8)
-    assert np.all(_edt(img) == kern.INF)
+    assert np.all(_edt(img, np.int32) == kern.INF)
+
+
+def _balls(d, min_dt2, half_width=1):
+    tab = np.sqrt(np.arange(d.max() + 1, dtype=float))
+    scratch = np.full(d.shape, -1, np.int32)
+    out = kern._maximal_balls(d, np.int64(min_dt2), tab, kern.ball_offsets(half_width), scratch)
+    assert np.all(scratch == -1)  # scratch restored
+    return out
 
 
 @SETTINGS
-@given(images(), st.integers(1, 4))
-def test_maximal_balls_equal_twin(img, min_dt2):
+@given(images(), st.integers(1, 4), st.sampled_from([1, 2]))
+def test_maximal_balls_equal_twin(img, min_dt2, half_width):
     d = _edt(img)
-    tab = np.sqrt(np.arange(d.max() + 1, dtype=float))
-    order, ncand = kern._maximal_balls(d, np.int64(min_dt2), tab)
-    order_ref, ncand_ref = ref.maximal_balls(d, min_dt2)
+    order, ncand = _balls(d, min_dt2, half_width)
+    order_ref, ncand_ref = ref.maximal_balls(d, min_dt2, half_width)
     assert ncand == ncand_ref == int(np.count_nonzero(d >= min_dt2))
     np.testing.assert_array_equal(order, order_ref)
 
@@ -64,7 +82,7 @@ def test_maximal_balls_equal_twin(img, min_dt2):
 def test_families_equal_twin(img, extent, ratio):
     d = _edt(img)
     tab = np.sqrt(np.arange(d.max() + 1, dtype=float))
-    balls, _ = kern._maximal_balls(d, np.int64(1), tab)
+    balls, _ = _balls(d, 1)
     labels = np.full(img.shape, -1, np.int32)
     master = kern._families(d, balls, tab, extent, ratio, labels)
     master_ref, labels_ref = ref.families(d, balls, extent, ratio)
@@ -98,7 +116,7 @@ def test_fill_unlabelled_equals_twin(img, seed):
 def test_interfaces_and_pore_stats_equal_twin(seed, shape, n_pores):
     rng = np.random.default_rng(seed)
     labels = rng.integers(-1, n_pores, shape).astype(np.int32)
-    dt2 = rng.integers(1, 30, shape).astype(np.int32)
+    dt2 = rng.integers(1, 30, shape).astype(np.uint16)
     conns, w, point, nf = kern._interfaces(labels, dt2, np.int64(n_pores))
     c_ref, w_ref, p_ref, nf_ref = ref.interfaces(labels, dt2)
     np.testing.assert_array_equal(conns.reshape(-1, 2), c_ref)

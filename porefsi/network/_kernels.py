@@ -15,20 +15,22 @@ from numba.typed import Dict
 
 from porefsi._numba import jit
 
-#: "No solid anywhere on this line" in the squared distance map (int32).
+#: "No solid anywhere on this line" in an int32 squared distance map.
 INF = np.int32(np.iinfo(np.int32).max)
+#: Cap of a uint16 squared distance map (radii up to 255 voxels are exact below it).
+CAP16 = np.uint16(np.iinfo(np.uint16).max)
 
 
 # --------------------------------------------------------------------------------------------
 # Squared Euclidean distance transform (Felzenszwalb & Huttenlocher 2012, separable)
 # --------------------------------------------------------------------------------------------
 @jit
-def _envelope_line(f, n, d, v, z):
+def _envelope_line(f, n, d, v, z, inf):
     """Lower envelope of parabolas ``f[p] + (q - p)^2`` on one line; ``d[q]`` its minimum over p.
 
-    ``f`` entries equal to INF are skipped (no solid voxel on that line).
+    ``f`` entries ``>= inf`` are skipped (no solid voxel within reach on that line); results are
+    capped at ``inf``.
     """
-    inf = np.int64(INF)
     k = -1
     for q in range(n):
         fq = f[q]
@@ -66,18 +68,21 @@ def _envelope_line(f, n, d, v, z):
 
 
 @jit
-def _sq_edt(pore, out):
+def _sq_edt(pore, out, cap):
     """Squared distance (voxel units) from each pore voxel to the nearest solid voxel centre.
 
-    Solid voxels get 0. Outside the image is *not* solid. Lines with no solid reachable get
-    :data:`INF`.
+    Solid voxels get 0. Outside the image is *not* solid. Values are ``min(d^2, cap)``: exact
+    wherever the true value is below ``cap`` (a capped intermediate only ever feeds candidates
+    that are themselves ``>= cap``), ``cap`` where no solid voxel is nearer.
 
     Parameters
     ----------
     pore : ndarray of uint8, shape (nx, ny, nz)
         1 = pore.
-    out : ndarray of int32, shape (nx, ny, nz)
+    out : ndarray of int32 or uint16, shape (nx, ny, nz)
         Written in place.
+    cap : int
+        The largest value ``out`` can hold (:data:`INF` for int32, :data:`CAP16` for uint16).
     """
     nx, ny, nz = pore.shape
     m = max(nx, ny, nz)
@@ -85,19 +90,19 @@ def _sq_edt(pore, out):
     d = np.empty(m, np.int64)
     v = np.empty(m, np.int64)
     z = np.empty(m + 1, np.float64)
-    inf = np.int64(INF)
+    inf = np.int64(cap)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
                 f[k] = inf if pore[i, j, k] else 0
-            _envelope_line(f, nz, d, v, z)
+            _envelope_line(f, nz, d, v, z, inf)
             for k in range(nz):
                 out[i, j, k] = d[k]
     for i in range(nx):
         for k in range(nz):
             for j in range(ny):
                 f[j] = out[i, j, k]
-            _envelope_line(f, ny, d, v, z)
+            _envelope_line(f, ny, d, v, z, inf)
             for j in range(ny):
                 out[i, j, k] = d[j]
     # last axis: gather a slab of lines at a time would be more cache friendly; the strided
@@ -106,7 +111,7 @@ def _sq_edt(pore, out):
         for k in range(nz):
             for i in range(nx):
                 f[i] = out[i, j, k]
-            _envelope_line(f, nx, d, v, z)
+            _envelope_line(f, nx, d, v, z, inf)
             for i in range(nx):
                 out[i, j, k] = d[i]
 
@@ -115,12 +120,23 @@ def _sq_edt(pore, out):
 # Maximal balls
 # --------------------------------------------------------------------------------------------
 @jit
-def _maximal_balls(dt2, min_dt2, sqrt_tab):
+def _maximal_balls(dt2, min_dt2, sqrt_tab, offsets, scratch):
     """Centres of the maximal balls, sorted by radius descending then linear index ascending.
 
     A candidate ball sits at every voxel with ``dt2 >= min_dt2`` (radius ``sqrt(dt2)``); it is
-    removed when the ball of one of its 26 neighbours ``q`` contains it,
-    ``sqrt(dt2[q]) >= sqrt(dt2[p]) + |p - q|``.
+    removed when the ball of a voxel ``q = p + o`` for one of the ``offsets`` contains it,
+    ``sqrt(dt2[q]) >= sqrt(dt2[p]) + |o|``.
+
+    Parameters
+    ----------
+    dt2 : ndarray of uint16 or int32, shape (nx, ny, nz)
+    min_dt2 : int
+    sqrt_tab : ndarray of float64
+        ``sqrt(n)`` for ``n = 0 .. max(dt2)``.
+    offsets : ndarray of int64, shape (n_off, 3)
+        Neighbour offsets tested (the zero offset excluded).
+    scratch : ndarray of int32, shape (nx, ny, nz)
+        All -1 on entry and on exit (used to flag the maximal balls, so no list grows).
 
     Returns
     -------
@@ -131,11 +147,17 @@ def _maximal_balls(dt2, min_dt2, sqrt_tab):
     nx, ny, nz = dt2.shape
     eps = 1e-9
     ncand = 0
-    nmax = 0
-    maxd = 0
-    # first pass: flag maximal balls by writing them into a compact list
-    cap = 1024
-    idx = np.empty(cap, np.int64)
+    n_off = offsets.shape[0]
+    olen = np.empty(n_off, np.float64)
+    for t in range(n_off):
+        olen[t] = math.sqrt(offsets[t, 0] ** 2 + offsets[t, 1] ** 2 + offsets[t, 2] ** 2)
+    top = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if dt2[i, j, k] > top:
+                    top = dt2[i, j, k]
+    count = np.zeros(top + 2, np.int64)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
@@ -145,45 +167,46 @@ def _maximal_balls(dt2, min_dt2, sqrt_tab):
                 ncand += 1
                 rp = sqrt_tab[dp]
                 maximal = True
-                for a in range(max(i - 1, 0), min(i + 2, nx)):
-                    for b in range(max(j - 1, 0), min(j + 2, ny)):
-                        for c in range(max(k - 1, 0), min(k + 2, nz)):
-                            dq = dt2[a, b, c]
-                            if dq <= dp:
-                                continue
-                            s = (a - i) * (a - i) + (b - j) * (b - j) + (c - k) * (c - k)
-                            if sqrt_tab[dq] >= rp + math.sqrt(s) - eps:
-                                maximal = False
-                                break
-                        if not maximal:
-                            break
-                    if not maximal:
+                for t in range(n_off):
+                    a = i + offsets[t, 0]
+                    b = j + offsets[t, 1]
+                    c = k + offsets[t, 2]
+                    if a < 0 or a >= nx or b < 0 or b >= ny or c < 0 or c >= nz:
+                        continue
+                    dq = dt2[a, b, c]
+                    if dq > dp and sqrt_tab[dq] >= rp + olen[t] - eps:
+                        maximal = False
                         break
                 if maximal:
-                    if nmax == cap:
-                        cap *= 2
-                        new = np.empty(cap, np.int64)
-                        new[:nmax] = idx[:nmax]
-                        idx = new
-                    idx[nmax] = (i * ny + j) * nz + k
-                    nmax += 1
-                    if dp > maxd:
-                        maxd = dp
-    # counting sort by dt2 descending, stable in linear index
-    count = np.zeros(maxd + 2, np.int64)
-    for n in range(nmax):
-        p = idx[n]
-        count[maxd - dt2[p // (ny * nz), (p // nz) % ny, p % nz]] += 1
-    start = np.zeros(maxd + 2, np.int64)
-    for t in range(1, maxd + 2):
+                    scratch[i, j, k] = -2
+                    count[top - dp] += 1
+    start = np.zeros(top + 2, np.int64)
+    for t in range(1, top + 2):
         start[t] = start[t - 1] + count[t - 1]
-    order = np.empty(nmax, np.int64)
-    for n in range(nmax):
-        p = idx[n]
-        key = maxd - dt2[p // (ny * nz), (p // nz) % ny, p % nz]
-        order[start[key]] = p
-        start[key] += 1
+    order = np.empty(start[top + 1], np.int64)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if scratch[i, j, k] == -2:
+                    scratch[i, j, k] = -1
+                    key = top - dt2[i, j, k]
+                    order[start[key]] = (i * ny + j) * nz + k
+                    start[key] += 1
     return order, ncand
+
+
+def ball_offsets(half_width):
+    """Neighbour offsets of the maximal-ball test: the cube of ``half_width``, zero excluded.
+
+    Returns
+    -------
+    ndarray of int64, shape ((2 h + 1)^3 - 1, 3)
+        Sorted by length, so the nearest neighbours (most likely to contain the ball) come first.
+    """
+    r = np.arange(-half_width, half_width + 1)
+    o = np.stack(np.meshgrid(r, r, r, indexing="ij"), axis=-1).reshape(-1, 3)
+    o = o[np.any(o != 0, axis=1)]
+    return np.ascontiguousarray(o[np.argsort((o * o).sum(axis=1), kind="stable")], dtype=np.int64)
 
 
 # --------------------------------------------------------------------------------------------
@@ -214,7 +237,7 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels):
 
     Parameters
     ----------
-    dt2 : ndarray of int32, shape (nx, ny, nz)
+    dt2 : ndarray of uint16 or int32, shape (nx, ny, nz)
     balls : ndarray of int64, shape (M,)
         Linear indices of maximal-ball centres, radius descending.
     sqrt_tab : ndarray of float64
@@ -228,13 +251,13 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels):
 
     Returns
     -------
-    master : ndarray of int64, shape (M,)
+    master : ndarray of int32, shape (M,)
         Index (into ``balls``) of each ball's family master; ``master[k] == k`` for masters.
     """
     nx, ny, nz = dt2.shape
     nb = balls.size
-    master = np.empty(nb, np.int64)
-    stamp = np.full(nb, -1, np.int64)
+    master = np.empty(nb, np.int32)
+    stamp = np.full(nb, -1, np.int32)
     for k in range(nb):
         p = balls[k]
         i = p // (ny * nz)

@@ -32,6 +32,12 @@ __all__ = ["Extraction", "ExtractionInfo", "extract_network", "digital_radius"]
 #: Smallest segment length of a conduit, in voxels (keeps every Network length > 0).
 MIN_SEGMENT = 0.05
 
+#: Largest uint16 squared distance kept (module constant so a test can force the int32 path).
+_DT2_CAP16 = int(kern.CAP16)
+
+#: Half-width of the neighbourhood searched for a ball containing a candidate ball, voxels.
+BALL_TEST_REACH = 1
+
 
 @dataclasses.dataclass(frozen=True)
 class ExtractionInfo:
@@ -142,6 +148,22 @@ def digital_radius(dt2) -> np.ndarray:
     return 0.5 * (np.sqrt(d) + np.sqrt(prev[d]))
 
 
+def _distance_map(pore: np.ndarray) -> np.ndarray:
+    """Squared distance map, uint16 when every value fits (radii < 256 voxels), else int32.
+
+    uint16 halves the largest array of the extraction (2 instead of 4 bytes per voxel); an
+    image with a value at the cap is recomputed in int32, so results never depend on the type.
+    """
+    dt2 = np.empty(pore.shape, np.uint16)
+    kern._sq_edt(pore, dt2, int(_DT2_CAP16))
+    if int(dt2.max()) < _DT2_CAP16:
+        return dt2
+    del dt2
+    dt2 = np.empty(pore.shape, np.int32)
+    kern._sq_edt(pore, dt2, int(kern.INF))
+    return dt2
+
+
 def _check(image, min_radius, extent):
     if not isinstance(image, VoxelImage):
         raise TypeError(f"extract_network needs a porefsi VoxelImage, got {type(image).__name__}")
@@ -232,15 +254,15 @@ def extract_network(
     secs: dict[str, float] = {}
     t_all = t0 = time.perf_counter()
 
-    dt2 = np.empty(image.shape, np.int32)
-    kern._sq_edt(pore, dt2)
+    dt2 = _distance_map(pore)
     secs["edt"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     max_d2 = int(dt2.max())
     sqrt_tab = np.sqrt(np.arange(max_d2 + 1, dtype=np.float64))
     min_dt2 = max(1, math.ceil(min_radius * min_radius - 1e-9))
-    balls, n_cand = kern._maximal_balls(dt2, np.int64(min_dt2), sqrt_tab)
+    labels = np.full(image.shape, -1, np.int32)
+    balls, n_cand = kern._maximal_balls(dt2, np.int64(min_dt2), sqrt_tab, kern.ball_offsets(BALL_TEST_REACH), labels)
     secs["maximal_balls"] = time.perf_counter() - t0
     if balls.size == 0:
         raise NetworkError(
@@ -249,13 +271,13 @@ def extract_network(
         )
 
     t0 = time.perf_counter()
-    labels = np.full(image.shape, -1, np.int32)
     master = kern._families(dt2, balls, sqrt_tab, extent, merge_ratio, labels)
-    is_master = master == np.arange(balls.size)
+    is_master = master == np.arange(balls.size, dtype=np.int32)
     masters = np.flatnonzero(is_master)
-    pore_of_master = np.full(balls.size, -1, np.int64)
-    pore_of_master[masters] = np.arange(masters.size)
-    kern._relabel(labels, pore_of_master[master].astype(np.int32))
+    pore_id = np.cumsum(is_master, dtype=np.int32) - np.int32(1)  # pore index at master positions
+    del is_master
+    kern._relabel(labels, pore_id[master])
+    del master, pore_id
     secs["families"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -280,6 +302,11 @@ def extract_network(
 
     t0 = time.perf_counter()
     del dt2
+    if conns.shape[0] == 0:
+        raise NetworkError(
+            f"the image yields {n_p} pore(s) and no throat: no two pore regions touch; use a larger "
+            "image, or lower extent (a shorter family reach splits long channels into chains)"
+        )
     r_throat = np.minimum(digital_radius(np.maximum(w, 1)), np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
     lt, lp = _conduit_lengths(centre, r_pore, conns, r_throat, point)
     vs = image.voxel_size

@@ -17,7 +17,10 @@ INF = np.iinfo(np.int32).max
 
 
 def sq_edt(pore):
-    """Squared distance from each voxel centre to the nearest solid voxel centre (brute force)."""
+    """Squared distance from each voxel centre to the nearest solid voxel centre (brute force).
+
+    INF (the int32 maximum) where the image has no solid voxel at all.
+    """
     solid = np.argwhere(pore == 0)
     out = np.zeros(pore.shape, np.int64)
     for ijk in np.argwhere(pore != 0):
@@ -28,7 +31,7 @@ def sq_edt(pore):
     return out
 
 
-def maximal_balls(dt2, min_dt2):
+def maximal_balls(dt2, min_dt2, half_width=1):
     """Maximal-ball centres (radius descending, linear index ascending) and candidate count."""
     shape = dt2.shape
     found = []
@@ -39,7 +42,7 @@ def maximal_balls(dt2, min_dt2):
             continue
         ncand += 1
         contained = False
-        for off in product((-1, 0, 1), repeat=3):
+        for off in product(range(-half_width, half_width + 1), repeat=3):
             q = tuple(a + o for a, o in zip(ijk, off, strict=True))
             if off == (0, 0, 0) or not all(0 <= q[a] < shape[a] for a in range(3)):
                 continue
