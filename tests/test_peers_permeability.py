@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from porefsi.flow.permeability import absolute_permeability
-from porefsi.network.convert import save_network, to_openpnm, write_statoil
+from porefsi.network.convert import from_openpnm, save_network, to_openpnm, write_statoil
 from porefsi.network.geometry import conduit_conductance
 
 pytestmark = pytest.mark.peers
@@ -112,3 +112,27 @@ def test_statoil_files_read_by_openpnm(rng, tmp_path, axis):
     np.testing.assert_array_equal(pn["throat.length"], net.throat_length)
     np.testing.assert_array_equal(pn.pores("inlets"), np.flatnonzero(net.inlet(axis)))
     np.testing.assert_array_equal(pn.pores("outlets"), np.flatnonzero(net.outlet(axis)))
+
+
+@pytest.mark.parametrize("axis", ["x", "z"])
+def test_openpnm_cubic_with_openpnm_geometry(axis):
+    """An OpenPNM-built network (Cubic + its spheres_and_cylinders geometry, random sizes) read by
+    from_openpnm: porefsi's conduit closed forms and solve against OpenPNM's own size factors and StokesFlow."""
+    pn = op.network.Cubic(shape=[6, 5, 4], spacing=1e-4)
+    pn.add_model_collection(op.models.collections.geometry.spheres_and_cylinders)
+    pn.regenerate_models()
+    pn["throat.conduit_lengths"] = op.models.geometry.conduit_lengths.spheres_and_cylinders(pn)
+    net = from_openpnm(pn, voxel_size=1e-5, shape=(60, 50, 40))
+    water = op.phase.Phase(network=pn)
+    water["pore.viscosity"] = 1e-3
+    water.add_model(propname="throat.hydraulic_conductance",
+                    model=op.models.physics.hydraulic_conductance.generic_hydraulic)
+    np.testing.assert_allclose(conduit_conductance(net, 1e-3), water["throat.hydraulic_conductance"], rtol=1e-12)
+    sf = op.algorithms.StokesFlow(network=pn, phase=water)
+    sf.set_value_BC(pores=pn.pores(f"{axis}min"), values=1.0)
+    sf.set_value_BC(pores=pn.pores(f"{axis}max"), values=0.0)
+    sf.run()
+    q = float(sf.rate(pores=pn.pores(f"{axis}min"), mode="group")[0])
+    res = absolute_permeability(net, axis)
+    assert res.flow_rate == pytest.approx(q, rel=1e-10, abs=0)
+    np.testing.assert_allclose(res.pressure, sf["pore.pressure"], rtol=0, atol=1e-10)
