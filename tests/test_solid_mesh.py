@@ -81,7 +81,7 @@ def test_voxel_mesh_is_conforming_and_exact(solid):
     assert np.abs(an.sum(axis=0)).max() < 1e-12
     assert np.einsum("ij,ij->", x.mean(axis=1), an) / 3 == pytest.approx(solid.sum(), rel=1e-12)
     # box-face facets lie on their plane and their area equals the solid voxel faces there
-    for code, name in enumerate(FACE_NAMES):
+    for code in range(len(FACE_NAMES)):
         ax, hi = divmod(code, 2)
         sel = tags == code
         plane = solid.shape[ax] if hi else 0

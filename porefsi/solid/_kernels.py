@@ -36,8 +36,12 @@ def _p1_gradients(points, tets, dN, vol):
 
 
 @jit
-def _stress_moduli(kind, lam, mu, F, P, A, want_A):
-    """First PK stress P and moduli A_iJkL of material ``kind`` at F; returns det F."""
+def _stress_moduli(kind, lam, mu, H, F, P, A, want_A):
+    """First PK stress P and moduli A_iJkL of material ``kind`` at F = I + H; returns det F.
+
+    The Green strain is formed from the displacement gradient H, not from F^T F - I, so small
+    strains keep their relative precision (F^T F - I cancels ~log10(1/strain) digits).
+    """
     J = (F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
          - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
          + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]))
@@ -45,10 +49,10 @@ def _stress_moduli(kind, lam, mu, F, P, A, want_A):
         E = np.empty((3, 3))
         for a in range(3):
             for b in range(3):
-                s = 0.0
+                s = H[a, b] + H[b, a]
                 for k in range(3):
-                    s += F[k, a] * F[k, b]
-                E[a, b] = 0.5 * (s - (1.0 if a == b else 0.0))
+                    s += H[k, a] * H[k, b]
+                E[a, b] = 0.5 * s
         tr = E[0, 0] + E[1, 1] + E[2, 2]
         S = np.empty((3, 3))
         for a in range(3):
@@ -102,17 +106,19 @@ def _assemble_p1(tets, dN, vol, u, kind, lam, mu, want_K, fint, data, nptr, deg,
     """
     n_bad = 0
     F = np.empty((3, 3))
+    Hd = np.empty((3, 3))
     P = np.empty((3, 3))
     A = np.empty((3, 3, 3, 3))
     H = np.empty((3, 3))  # H[i, J] = sum_L A_iJkL dN_bL for the current (b, k)
     for e in range(tets.shape[0]):
         for i in range(3):
             for jj in range(3):
-                s = 1.0 if i == jj else 0.0
+                s = 0.0
                 for a in range(4):
                     s += u[tets[e, a], i] * dN[e, a, jj]
-                F[i, jj] = s
-        J = _stress_moduli(kind, lam, mu, F, P, A, want_K)
+                Hd[i, jj] = s
+                F[i, jj] = s + (1.0 if i == jj else 0.0)
+        J = _stress_moduli(kind, lam, mu, Hd, F, P, A, want_K)
         if J <= 0.0:
             n_bad += 1
             continue

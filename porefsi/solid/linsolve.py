@@ -160,7 +160,7 @@ class AMGSolverFactory:
         B[cons] = 0.0  # constrained dofs carry no near-null-space component
         self.ml = pyamg.smoothed_aggregation_solver(
             Ab, B=B, symmetry="symmetric", strength=("symmetric", {"theta": 0.0}),
-            smooth=("jacobi", {"omega": 4.0 / 3.0}), max_coarse=self.max_coarse,
+            smooth=("jacobi", {"omega": 4.0 / 3.0}), max_coarse=self.max_coarse, coarse_solver="splu",
         )
         self._M = self.ml.aspreconditioner(cycle="V")
         self.n_setups += 1

@@ -21,7 +21,7 @@ from porefsi.errors import InputError
 from porefsi.solid import forms
 from porefsi.solid.assembly import P1Assembler, submatrix_selector
 from porefsi.solid.bc import Constraints, Traction
-from porefsi.solid.linsolve import AMGSolverFactory, direct_solver_factory
+from porefsi.solid.linsolve import AMGSolverFactory, direct_solver_factory, jacobi_solver_factory
 from porefsi.solid.materials import Material
 from porefsi.solid.mesh import FACET_TAGS, SolidMesh
 
@@ -47,6 +47,9 @@ class SolidModel:
         P1 (lumped mass, numba fast path) or P2 (consistent mass, scikit-fem forms).
     backend : {"auto", "numba", "skfem"}
         Assembly route for P1 ("auto" = numba); P2 always uses scikit-fem.
+    linear_solver : {"auto", "amg", "jacobi", "direct"}
+        What :meth:`make_solver` returns: "auto" is a sparse LU below 3000 free dofs and AMG-CG
+        above; "jacobi" (Jacobi-CG) is competitive up to ~1e5 dofs and for mass-dominated M + c K.
 
     Notes
     -----
@@ -56,11 +59,14 @@ class SolidModel:
 
     def __init__(self, mesh: SolidMesh, material: Material, bcs: Sequence = (), *,
                  tractions: Sequence[Traction] = (), load_factor: Callable[[float], float] | None = None,
-                 nodal_forces=None, order: int = 1, backend: str = "auto"):
+                 nodal_forces=None, order: int = 1, backend: str = "auto", linear_solver: str = "auto"):
         if not isinstance(mesh, SolidMesh):
             raise InputError(f"mesh must be a SolidMesh, got {type(mesh).__name__}")
         if not isinstance(material, Material):
             raise InputError(f"material must be a Material, got {type(material).__name__}")
+        if linear_solver not in ("auto", "amg", "jacobi", "direct"):
+            raise InputError(f"linear_solver must be 'auto', 'amg', 'jacobi' or 'direct', got {linear_solver!r}")
+        self.linear_solver = linear_solver
         if backend not in ("auto", "numba", "skfem"):
             raise InputError(f"backend must be 'auto', 'numba' or 'skfem', got {backend!r}")
         if order == 2 and backend == "numba":
@@ -191,15 +197,19 @@ class SolidModel:
     def make_solver(self, A: sp.spmatrix):
         """``solve(b) -> x`` for an SPD free-dof matrix A (e.g. K or M + c K).
 
-        Small systems (< 3000 dofs) use a sparse LU; larger ones CG preconditioned by pyamg
-        smoothed aggregation with rigid-body modes, the hierarchy reused across calls while CG
-        converges within 40 iterations (see :class:`~porefsi.solid.linsolve.AMGSolverFactory`).
+        Per ``linear_solver``: with "auto", small systems (< 3000 dofs) use a sparse LU, larger
+        ones CG preconditioned by pyamg smoothed aggregation with rigid-body modes, the hierarchy
+        reused across calls while CG converges within 40 iterations (see
+        :class:`~porefsi.solid.linsolve.AMGSolverFactory`).
         """
-        if self.n_dofs < 3000:
+        kind = self.linear_solver
+        if kind == "auto":
+            kind = "direct" if self.n_dofs < 3000 else "amg"
+        if kind == "direct":
             return direct_solver_factory()(A)
-        if self._solver_factory is None:
-            self._solver_factory = AMGSolverFactory(self.feb.dof_points, self.free)
-        return self._solver_factory(A)
+        if kind == "jacobi":
+            return jacobi_solver_factory()(A)
+        return self.solver_factory(A)
 
     @property
     def solver_factory(self) -> AMGSolverFactory:

@@ -152,7 +152,7 @@ def uniaxial_compression(mesh: SolidMesh, material: Material, strain: float = 1e
         except MeshError as exc:
             raise MeshError(f"{exc} (at load increment {k}/{n_steps}; try n_steps={2 * int(n_steps)})") from None
         infos.append(info)
-    R = -model.reactions(u, 1.0)[FACE_NAMES[2 * ax + 1]]  # force of the platen on the solid
+    R = model.reactions(u, 1.0)[FACE_NAMES[2 * ax + 1]]  # force of the platen on the solid
     ext = np.ptp(mesh.points, axis=0)
     area = float(np.prod(np.delete(ext, ax)))
     sigma = element_cauchy(model, u, 1.0)

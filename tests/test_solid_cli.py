@@ -1,0 +1,34 @@
+"""``porefsi solid`` through main(argv): summary keys, files, physics sanity, bad input."""
+
+import json
+
+import numpy as np
+
+from porefsi.cli import main
+from porefsi.io.solid_vtk import read_solid_vtu
+
+
+def test_solid_cli_json_and_vtu(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["solid", "--coarsen", "12", "--strain", "1e-3", "--axis", "x", "-o", str(out), "--json"])
+    assert code == 0
+    s = json.loads(capsys.readouterr().out)
+    for key in ("n_nodes", "n_tets", "removed_solid_fraction", "effective_modulus_Pa", "max_displacement_m",
+                "max_von_mises_Pa", "seconds"):
+        assert key in s
+    # porous rock is softer than the grains' uniaxial-strain modulus lambda + 2 mu (29.4 GPa at
+    # E = 20 GPa, nu = 0.28) and stiffer than zero; the platen moves strain * L = 1e-3 * 0.6414 mm
+    assert 0 < s["effective_modulus_Pa"] < 29.4e9
+    assert np.isclose(s["max_displacement_m"], 1e-3 * 120 * 5.345e-6, rtol=0.05)
+    p, t, pd, cd = read_solid_vtu(out / "solid.vtu")
+    assert len(p) == s["n_nodes"] and len(t) == s["n_tets"]
+    assert pd["displacement"].shape == (s["n_nodes"], 3)
+    assert np.isclose(cd["von_mises"].max(), s["max_von_mises_Pa"])
+    assert json.loads((out / "summary.json").read_text())["n_tets"] == s["n_tets"]
+
+
+def test_solid_cli_bad_input(capsys):
+    assert main(["solid", "--coarsen", "12", "--poisson", "0.5"]) == 2
+    assert "Poisson ratio" in capsys.readouterr().err
+    assert main(["solid", "--coarsen", "0"]) == 2
+    assert "coarsen" in capsys.readouterr().err

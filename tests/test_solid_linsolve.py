@@ -1,0 +1,89 @@
+"""Linear solvers: AMG-CG with rigid-body modes converges within a bound, is symmetric, is reused."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from porefsi.errors import ConvergenceError
+from porefsi.image.voxel_image import VoxelImage
+from porefsi.solid.bc import uniaxial_bcs
+from porefsi.solid.linsolve import (
+    AMGSolverFactory,
+    direct_solver_factory,
+    jacobi_solver_factory,
+    pcg,
+    rigid_body_modes,
+)
+from porefsi.solid.materials import StVenantKirchhoff
+from porefsi.solid.mesh import mesh_solid
+from porefsi.solid.model import SolidModel
+
+SAMPLE = Path(__file__).resolve().parents[1] / "porefsi" / "data" / "berea_icl_120_paper.npz"
+
+
+@pytest.fixture(scope="module")
+def rock_model():
+    """The sample rock at coarsen 8 (~15k tets, ~10k free dofs), the paper's BCs."""
+    d = np.load(SAMPLE)
+    img = VoxelImage(d["image"], float(d["voxel_size_m"]))
+    mesh = mesh_solid(img, coarsen=8).mesh
+    return SolidModel(mesh, StVenantKirchhoff(20e9, 0.28), uniaxial_bcs("z", rate=-1e-3 * 0.641e-3))
+
+
+def test_amg_cg_converges_fast_and_is_symmetric(rock_model, rng):
+    """Smoothed aggregation with the six rigid-body modes: CG reaches 1e-8 in <= 40 iterations on the
+    porous rock (measured 10-15; an SA preconditioner without the rotations needs several times more),
+    and the V-cycle with symmetric Gauss-Seidel smoothing is a symmetric operator."""
+    m = rock_model
+    K = m.tangent(np.zeros(m.n_dofs), 1.0)
+    fac = AMGSolverFactory(m.feb.dof_points, m.free, rtol=1e-8)
+    b = rng.standard_normal(m.n_dofs)
+    x = fac(K)(b)
+    assert np.linalg.norm(K @ x - b) <= 1e-8 * np.linalg.norm(b)
+    assert fac.last.iterations <= 40
+    hist = np.asarray(fac.last.history)
+    assert hist[-1] <= 1e-8 and len(hist) == fac.last.iterations + 1
+    x1, x2 = rng.standard_normal((2, m.n_dofs))
+    a, bb = x2 @ fac.precondition(x1), x1 @ fac.precondition(x2)
+    assert abs(a - bb) <= 1e-10 * abs(a)
+    assert x1 @ fac.precondition(x1) > 0
+
+
+def test_amg_hierarchy_reused_while_fast(rock_model, rng):
+    m = rock_model
+    fac = AMGSolverFactory(m.feb.dof_points, m.free)
+    K0 = m.tangent(np.zeros(m.n_dofs), 1.0)
+    fac(K0)(rng.standard_normal(m.n_dofs))
+    # a perturbed operator (a mass-like shift, as in M + c K): the old hierarchy still serves
+    K1 = K0 + sp.diags(1e-3 * K0.diagonal())
+    b = rng.standard_normal(m.n_dofs)
+    x = fac(K1)(b)
+    assert fac.n_setups == 1
+    assert np.linalg.norm(K1 @ x - b) <= 1e-8 * np.linalg.norm(b)
+    # a very different operator forces a rebuild instead of a slow solve
+    fac.rebuild_iterations = 0
+    fac(K1 * 0.5 + sp.diags(K0.diagonal()))(b)
+    assert fac.n_setups == 2
+
+
+def test_rigid_body_modes_are_orthonormalisable():
+    pts = np.random.default_rng(0).uniform(size=(20, 3))
+    B = rigid_body_modes(pts)
+    assert B.shape == (60, 6)
+    assert np.linalg.matrix_rank(B) == 6
+
+
+def test_other_solvers_and_failure_history(rock_model, rng):
+    m = rock_model
+    K = m.tangent(np.zeros(m.n_dofs), 1.0)
+    b = rng.standard_normal(m.n_dofs)
+    xd = direct_solver_factory()(K)(b)
+    xj = jacobi_solver_factory(rtol=1e-10, maxiter=20000)(K)(b)
+    np.testing.assert_allclose(xj, xd, rtol=1e-6, atol=1e-6 * np.abs(xd).max())
+    with pytest.raises(ConvergenceError) as exc:
+        pcg(K, b, maxiter=5)
+    assert len(exc.value.history) == 6 and exc.value.history[0] == 1.0
+    with pytest.raises(ConvergenceError, match="breakdown"):
+        pcg(-sp.identity(4), np.ones(4))
