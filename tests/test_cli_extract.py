@@ -203,3 +203,12 @@ def test_all_pore(tmp_path, capsys):
     np.savez(p, image=np.ones((10, 10, 10), np.uint8), voxel_size_m=VS)
     _fails(capsys, ["extract", str(p)], "pore")
     _fails(capsys, ["permeability", str(p)], "pore")
+
+
+def test_unwritable_output_is_a_one_line_error(image_file, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    _fails(capsys, ["run", "-o", str(blocker)], "not a folder")
+    (tmp_path / "ro").mkdir()
+    (tmp_path / "ro" / "net.npz").mkdir()  # a folder where the file should go
+    _fails(capsys, ["extract", str(image_file), "-o", str(tmp_path / "ro" / "net.npz")], "net.npz")

@@ -164,13 +164,16 @@ def run_extract(args: argparse.Namespace) -> int:
     details.pop("_extraction")
     details.pop("_image")
     summary = {**details, **_network_stats(net)}
-    if "network_file" in outs:
-        save_network(net, outs["network_file"])
-    if "vtk_file" in outs:
-        write_network_vtp(net, outs["vtk_file"])
-    if args.statoil:
-        write_statoil(net, args.statoil, args.axis)
-        outs["statoil_prefix"] = args.statoil
+    try:
+        if "network_file" in outs:
+            save_network(net, outs["network_file"])
+        if "vtk_file" in outs:
+            write_network_vtp(net, outs["vtk_file"])
+        if args.statoil:
+            write_statoil(net, args.statoil, args.axis)
+            outs["statoil_prefix"] = args.statoil
+    except OSError as exc:
+        raise InputError(f"cannot write {exc.filename or 'an output file'}: {exc.strerror or exc}") from None
     summary.update({k: str(v) for k, v in outs.items()})
     summary["seconds"] = time.perf_counter() - t0
     emit(summary, args.json)

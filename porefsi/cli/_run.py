@@ -60,15 +60,18 @@ def run(args: argparse.Namespace) -> int:
         summary[f"permeability_{ax}_mD"] = res.k_mD
         summary[f"n_excluded_pores_{ax}"] = res.info["n_excluded_pores"]
         pressure[f"pressure_{ax}"] = res.pressure
-    out.mkdir(parents=True, exist_ok=True)
-    files = {
-        "network_file": save_network(net, out / "network.npz"),
-        "vtk_file": write_network_vtp(net, out / "network.vtp", point_data=pressure),
-        "summary_file": out / "summary.json",
-    }
-    summary.update({k: str(v) for k, v in files.items()})
-    summary["seconds"] = time.perf_counter() - t0
-    files["summary_file"].write_text(json.dumps(to_jsonable(summary), indent=2) + "\n")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        files = {
+            "network_file": save_network(net, out / "network.npz"),
+            "vtk_file": write_network_vtp(net, out / "network.vtp", point_data=pressure),
+            "summary_file": out / "summary.json",
+        }
+        summary.update({k: str(v) for k, v in files.items()})
+        summary["seconds"] = time.perf_counter() - t0
+        files["summary_file"].write_text(json.dumps(to_jsonable(summary), indent=2) + "\n")
+    except OSError as exc:
+        raise InputError(f"cannot write the outputs to {out}: {exc.strerror or exc}; pass another -o DIR") from None
     emit(summary, args.json)
     return 0
 

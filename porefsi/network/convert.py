@@ -79,6 +79,21 @@ def to_openpnm(net: Network) -> dict[str, np.ndarray]:
     :func:`porefsi.network.geometry.resistance_factors`, so OpenPNM's
     ``models.physics.hydraulic_conductance.generic_hydraulic`` (:math:`g_k = S_k/\mu`, segments in
     series) reproduces porefsi's conduit conductances exactly. The input is not modified.
+
+    Examples
+    --------
+    >>> from porefsi.network.network import Network
+    >>> net = Network(pore_coords=[[1e-5, 5e-6, 5e-6], [3e-5, 5e-6, 5e-6]], pore_radius=[4e-6, 4e-6],
+    ...               pore_volume=[1e-16, 1e-16], throat_conns=[[0, 1]], throat_radius=[2e-6],
+    ...               throat_length=[1e-5], throat_pore_length=[[5e-6, 5e-6]],
+    ...               pore_faces=[[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0]], voxel_size=1e-6,
+    ...               shape=(40, 10, 10))
+    >>> d = to_openpnm(net)
+    >>> d["pore.diameter"].tolist(), d["throat.conduit_lengths"].tolist()
+    ([8e-06, 8e-06], [[5e-06, 1e-05, 5e-06]])
+    >>> back = from_openpnm(d)
+    >>> bool((back.pore_coords == net.pore_coords).all()), back.shape
+    (True, (40, 10, 10))
     """
     tpl = net.throat_pore_length
     cl = np.column_stack([tpl[:, 0], net.throat_length, tpl[:, 1]])
