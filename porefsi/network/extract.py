@@ -363,7 +363,9 @@ def _merge_shallow(centre, r_pore, conns, r_interface, merge_ratio, extent):
     A throat whose interface radius is at least ``merge_ratio`` times the smaller pore radius
     does not separate two bodies: the smaller pore is a bump on the larger one's flank (a
     saddle of the distance map barely below its maximum). Its region joins the larger pore when
-    its centre lies within ``extent`` radii of that pore's centre. Throats are taken from the
+    its centre lies within ``extent`` radii of that pore's centre or it is clearly smaller
+    (``R_small < merge_ratio R_big``): the same rule as the ball hierarchy, so uniform channels
+    stay chains. Throats are taken from the
     weakest constriction up; returns new ids ``0 .. Np' - 1`` numbered in the order of the
     surviving pores (so radius descending is kept).
     """
@@ -385,7 +387,8 @@ def _merge_shallow(centre, r_pore, conns, r_interface, merge_ratio, extent):
             if a == b:
                 continue
             big, small = (a, b) if (r_pore[a], -a) >= (r_pore[b], -b) else (b, a)
-            if np.sum((centre[big] - centre[small]) ** 2) < (extent * r_pore[big]) ** 2:
+            near = np.sum((centre[big] - centre[small]) ** 2) < (extent * r_pore[big]) ** 2
+            if near or r_pore[small] < merge_ratio * r_pore[big]:
                 parent[small] = big
     top = np.array([find(a) for a in range(n_p)], dtype=np.int64)
     survivors = np.flatnonzero(top == np.arange(n_p))

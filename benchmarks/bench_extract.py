@@ -1,0 +1,197 @@
+"""Benchmark: maximal-ball extraction with porefsi vs PoreSpy ``snow2`` vs ``pnextract``.
+
+Every tool runs on the same image in its own subprocess, one after the other, so each peak
+memory (``ru_maxrss``) is its own. Reported per tool:
+
+* CPU seconds of the extraction call (``time.process_time`` inside the child: all threads; for
+  pnextract, the child's user + sys time from ``getrusage(RUSAGE_CHILDREN)``), and µs per voxel;
+* peak resident memory, and bytes per voxel *above the child's baseline* (interpreter, imports
+  and the loaded image measured just before the call; pnextract is a C++ binary that reads the
+  image itself, so its whole peak counts);
+* pore and throat counts, mean coordination.
+
+Usage::
+
+    python benchmarks/bench_extract.py            # built-in 120^3 Berea + 400^3 when present
+    python benchmarks/bench_extract.py --quick    # built-in 120^3 only
+    python benchmarks/bench_extract.py --tools porefsi pnextract
+
+Peers live in a separate virtualenv (``--peers-python``, default ``/tmp/peers-venv/bin/python``,
+with ``porespy`` and ``pnextract`` installed); a tool that is missing is reported and skipped.
+The machine the numbers in ``docs/extraction.md`` came from was shared and noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+BUILTIN = REPO / "porefsi" / "data" / "berea_icl_120_paper.npz"
+LARGE = Path("/work/shared/data/berea_icl_400.npz")
+
+PORESFI_CHILD = r"""
+import json, resource, sys, time
+import numpy as np
+from porefsi.image.synthetic import sphere_lattice
+from porefsi.image.voxel_image import VoxelImage
+from porefsi.network.extract import extract_network
+extract_network(sphere_lattice(n=(2, 1, 1)).image)  # load (or compile) the numba kernels
+d = np.load(sys.argv[1])
+img = VoxelImage(d["image"], float(d["voxel_size_m"]))
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+t = time.process_time()
+ext = extract_network(img)
+cpu = time.process_time() - t
+net = ext.network
+print(json.dumps(dict(cpu=cpu, base_kb=base, peak_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+    n_pores=net.n_pores, n_throats=net.n_throats, z=float(net.coordination.mean()),
+    stages={k: round(v, 3) for k, v in ext.info.seconds.items()})))
+"""
+
+SNOW2_CHILD = r"""
+import json, resource, sys, time, warnings
+import numpy as np
+warnings.filterwarnings("ignore")
+import porespy as ps
+d = np.load(sys.argv[1])
+im = d["image"].astype(bool)
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+t = time.process_time()
+# boundary_width=0: no added boundary pores, so the count is the image's own pores
+snow = ps.networks.snow2(im, voxel_size=float(d["voxel_size_m"]), boundary_width=0)
+cpu = time.process_time() - t
+net = snow.network
+n_p = len(net["pore.coords"])
+conns = np.asarray(net["throat.conns"])
+print(json.dumps(dict(cpu=cpu, base_kb=base, peak_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+    n_pores=n_p, n_throats=len(conns), z=2 * len(conns) / n_p)))
+"""
+
+
+def _run_python(python, code, image, env=None):
+    t = time.perf_counter()
+    out = subprocess.run([python, "-c", code, str(image)], capture_output=True, text=True, env=env)
+    if out.returncode != 0:
+        raise RuntimeError(out.stderr.strip().splitlines()[-1] if out.stderr.strip() else "failed")
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    res["wall"] = time.perf_counter() - t
+    return res
+
+
+def run_porefsi(image, args):
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    return _run_python(sys.executable, PORESFI_CHILD, image, env)
+
+
+def run_snow2(image, args):
+    if not Path(args.peers_python).exists():
+        raise RuntimeError(f"{args.peers_python} not found")
+    return _run_python(args.peers_python, SNOW2_CHILD, image)
+
+
+def run_pnextract(image, args):
+    exe = Path(args.peers_python).parent / "pnextract"
+    if not exe.exists():
+        exe = shutil.which("pnextract")
+        if exe is None:
+            raise RuntimeError("pnextract not installed (pip install pnextract in the peers venv)")
+    d = np.load(image)
+    im = d["image"]
+    vs_um = float(d["voxel_size_m"]) * 1e6
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        # pnextract reads raw x-fastest with pore = 0 (Imperial College convention)
+        (1 - im).astype(np.uint8).transpose(2, 1, 0).tofile(tmp / "img.raw")
+        nx, ny, nz = im.shape
+        (tmp / "img.mhd").write_text(
+            "ObjectType = Image\nNDims = 3\nElementType = MET_UCHAR\n"
+            f"DimSize = {nx} {ny} {nz}\nElementSpacing = {vs_um} {vs_um} {vs_um}\nOffset = 0 0 0\n"
+            "ElementDataFile = img.raw\n"
+        )
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t = time.perf_counter()
+        out = subprocess.run([str(exe), "img.mhd"], cwd=tmp, capture_output=True, text=True)
+        wall = time.perf_counter() - t
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if out.returncode != 0:
+            raise RuntimeError(out.stdout[-300:] + out.stderr[-300:])
+        n_p = int((tmp / "img_node1.dat").read_text().split()[0])
+        n_t = int((tmp / "img_link1.dat").read_text().split()[0])
+    m = re.search(r"(\d+)-2 pores, (\d+) throats", out.stdout)
+    return dict(
+        cpu=(after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
+        base_kb=0,
+        peak_kb=after.ru_maxrss,  # the largest child so far: run pnextract before other children
+        n_pores=n_p,
+        n_throats=n_t,
+        z=2 * n_t / n_p,
+        wall=wall,
+        log_counts=m.groups() if m else None,
+    )
+
+
+TOOLS = {"pnextract": run_pnextract, "porefsi": run_porefsi, "snow2": run_snow2}
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="built-in 120^3 image only")
+    p.add_argument("--tools", nargs="+", default=list(TOOLS), choices=list(TOOLS))
+    p.add_argument("--images", nargs="+", type=Path, help="npz images (keys image, voxel_size_m)")
+    p.add_argument("--peers-python", default="/tmp/peers-venv/bin/python")
+    p.add_argument("--json", type=Path, help="also write the results here")
+    args = p.parse_args(argv)
+    images = args.images or ([BUILTIN] if args.quick or not LARGE.exists() else [BUILTIN, LARGE])
+    results = []
+    for image in images:
+        n_vox = int(np.prod(np.load(image)["image"].shape))
+        print(f"\n== {image.name}: {n_vox:,} voxels ==")
+        row = {}
+        for tool in [t for t in TOOLS if t in args.tools]:  # pnextract first: see run_pnextract
+            try:
+                r = TOOLS[tool](image, args)
+            except Exception as err:  # a missing peer must not stop the others
+                print(f"{tool:10s} skipped: {err}")
+                continue
+            r["us_per_voxel"] = 1e6 * r["cpu"] / n_vox
+            r["peak_mb"] = r["peak_kb"] / 1024
+            r["bytes_per_voxel"] = (r["peak_kb"] - r["base_kb"]) * 1024 / n_vox
+            row[tool] = r
+            print(
+                f"{tool:10s} cpu {r['cpu']:8.2f} s ({r['us_per_voxel']:.3f} us/voxel)  wall {r['wall']:7.1f} s  "
+                f"peak {r['peak_mb']:7.0f} MB ({r['bytes_per_voxel']:.1f} B/voxel above baseline)  "
+                f"pores {r['n_pores']:7d}  throats {r['n_throats']:7d}  Z {r['z']:.2f}"
+            )
+            if "stages" in r:
+                print(f"{'':10s} stages (wall s): {r['stages']}")
+        if "porefsi" in row:
+            me = row["porefsi"]
+            for peer in ("snow2", "pnextract"):
+                if peer in row:
+                    o = row[peer]
+                    print(
+                        f"porefsi vs {peer:9s}: {o['cpu'] / me['cpu']:6.1f}x less CPU, "
+                        f"{o['bytes_per_voxel'] / me['bytes_per_voxel']:5.1f}x less memory per voxel, "
+                        f"pore count ratio {me['n_pores'] / o['n_pores']:.2f}"
+                    )
+        results.append({"image": str(image), "n_voxels": n_vox, "tools": row})
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1, default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
