@@ -24,15 +24,22 @@ EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (``porefsi: error: ...``, exit 2), like porefsi's own."""
+
+    def error(self, message):
+        self.exit(EXIT_ERROR, f"porefsi: error: {self.prog}: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser with every subcommand registered."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="porefsi",
         description="Pore-scale hydromechanics: pore networks from rock images, dynamic drainage, "
         "and the rock deformation it causes (two-way coupled).",
     )
     parser.add_argument("--version", action="version", version=f"porefsi {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in _MODULES:
         try:
             mod = importlib.import_module(f"porefsi.cli._{name}")

@@ -109,7 +109,8 @@ class Network:
         if not np.all(np.isfinite(coords)):
             raise InputError("Network.pore_coords has NaN or infinite entries")
         for name in ("pore_radius", "pore_volume", "throat_radius", "throat_length", "throat_pore_length"):
-            bad = np.flatnonzero(f[name].reshape(len(f[name]), -1).min(axis=1, initial=np.inf) <= 0)
+            a = f[name]
+            bad = np.flatnonzero((a <= 0).reshape(a.shape[0], -1).any(axis=1)) if a.size else np.zeros(0, int)
             if bad.size:
                 raise InputError(f"Network.{name} must be > 0; entry {int(bad[0])} is {f[name][bad[0]]}")
         if np.any(f["throat_volume"] < 0):
