@@ -114,7 +114,7 @@ def _pv():
 
 
 def render_network(coords, radii, conns, values, path: str | Path, *, label: str = "", clim=None,
-                   cmap: str = "coolwarm_r", window_size=(900, 700)) -> Path:
+                   cmap: str = "coolwarm", window_size=(900, 700)) -> Path:
     """Pores as spheres (true radius) and throats as lines, coloured by a per-pore value.
 
     Parameters
@@ -125,7 +125,8 @@ def render_network(coords, radii, conns, values, path: str | Path, *, label: str
         Pore radii, m.
     conns : ndarray of int, shape (Nt, 2)
     values : ndarray, shape (Np,)
-        Colour per pore (e.g. wetting saturation: red = wetting, blue = non-wetting as in the paper).
+        Colour per pore (e.g. wetting saturation with the default map: red = wetting (water),
+        blue = non-wetting (oil), as in the paper's figure 5).
     """
     pv = _pv()
     c = np.asarray(coords, float) * 1e6
@@ -149,7 +150,7 @@ def render_network(coords, radii, conns, values, path: str | Path, *, label: str
 
 
 def render_solid(points, tets, values, path: str | Path, *, label: str = "", displacement=None, scale: float = 0.0,
-                 cmap: str = "viridis", clim=None, window_size=(900, 700)) -> Path:
+                 cmap: str = "viridis", clim=None, window_size=(900, 700), cut: str | None = None) -> Path:
     """Surface of the tetrahedral solid coloured by a nodal value, optionally warped.
 
     Parameters
@@ -162,6 +163,9 @@ def render_solid(points, tets, values, path: str | Path, *, label: str = "", dis
     displacement : ndarray, shape (Nn, 3), optional
         Warp the surface by ``scale * displacement`` (displacements are far below a voxel: pick a
         visible scale, and say so in the caption).
+    cut : {'x', 'y', 'z'}, optional
+        Remove the half of the sample above the mid-plane normal to this axis, to show the
+        interior (box faces are held by the loading frame, so the outside shows little).
     """
     pv = _pv()
     x = np.asarray(points, float)
@@ -176,6 +180,9 @@ def render_solid(points, tets, values, path: str | Path, *, label: str = "", dis
         grid.cell_data[name] = v
     else:
         grid.point_data[name] = v
+    if cut is not None:
+        normal = np.eye(3)["xyz".index(cut)]
+        grid = grid.clip(normal=normal, origin=grid.center, invert=True)
     try:
         surf = grid.extract_surface(algorithm="dataset_surface")
     except TypeError:  # pyvista < 0.47 has no `algorithm`

@@ -126,6 +126,9 @@ class CouplingConfig:
     integrator: str = _f("tdg", "solid time integrator: tdg (paper) or static (no inertia)",
                          choices=("tdg", "static"))
     tdg_iterations: int = _f(2, "Nørsett predictor-corrector passes (2 = third order)", choices=(1, 2))
+    tdg_load_rule: str = _f("right", "TDG load samples: right = t+Δt/3, t+Δt (third order for the quasi-static "
+                            "response of a stiff solid); left = t, t+2Δt/3 (the paper; second order there)",
+                            choices=("right", "left"))
     subiterations: int = _f(1, "fluid-solid sub-iterations per exchange step (1 = explicit staggering)",
                             lo=1)
     relaxation: str = _f("aitken", "sub-iteration relaxation", choices=("none", "aitken"))

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_write_bytes", "atomic_write_text", "write_json", "write_csv", "PvdSeries",
+__all__ = ["jsonable", "atomic_write_bytes", "atomic_write_text", "write_json", "write_csv", "PvdSeries",
            "save_checkpoint", "load_checkpoint"]
 
 
@@ -44,13 +44,14 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def _jsonable(v):
+def jsonable(v):
+    """``v`` with numpy values as Python ones and NaN/inf as None (JSON-safe), recursively."""
     if isinstance(v, Mapping):
-        return {str(k): _jsonable(x) for k, x in v.items()}
+        return {str(k): jsonable(x) for k, x in v.items()}
     if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
+        return [jsonable(x) for x in v]
     if isinstance(v, np.ndarray):
-        return _jsonable(v.tolist())
+        return jsonable(v.tolist())
     if isinstance(v, np.generic):
         v = v.item()
     if isinstance(v, float) and not math.isfinite(v):
@@ -62,7 +63,7 @@ def _jsonable(v):
 
 def write_json(path: str | Path, data: Mapping) -> Path:
     """Write ``data`` as indented JSON (NaN/inf become null; numpy values become Python)."""
-    return atomic_write_text(path, json.dumps(_jsonable(data), indent=2) + "\n")
+    return atomic_write_text(path, json.dumps(jsonable(data), indent=2) + "\n")
 
 
 def write_csv(path: str | Path, columns: Mapping[str, Sequence]) -> Path:
@@ -139,7 +140,7 @@ def save_checkpoint(path: str | Path, arrays: Mapping[str, np.ndarray], meta: Ma
     """Write arrays and JSON metadata into one ``.npz`` atomically."""
     buf = io.BytesIO()
     payload = {k: np.asarray(v) for k, v in arrays.items()}
-    payload["__meta__"] = np.frombuffer(json.dumps(_jsonable(meta)).encode("utf-8"), dtype=np.uint8)
+    payload["__meta__"] = np.frombuffer(json.dumps(jsonable(meta)).encode("utf-8"), dtype=np.uint8)
     np.savez(buf, **payload)
     return atomic_write_bytes(path, buf.getvalue())
 

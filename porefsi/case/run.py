@@ -1,0 +1,267 @@
+"""Run a case end to end: build, couple, write results, checkpoint, resume, figures.
+
+Outputs in the run directory:
+
+- ``case.toml``: the resolved case (every key);
+- ``timeseries.csv``: one row per exchange step (:data:`porefsi.coupling.loop.TIMESERIES_COLUMNS`);
+- ``summary.json``: headline figures (and ``status``/``error`` if the run failed);
+- ``solid.pvd`` + ``vtk/solid_NNNN.vtu`` (displacement, von Mises, nodal pore force) and
+  ``network.pvd`` + ``vtk/network_NNNN.vtp`` (pressure, saturation, radius) at the snapshot times;
+- ``figures/*.png``: time series, pore-size distributions, drainage and deformation scenes;
+- ``checkpoint.npz``: written atomically every ``output.checkpoint_every`` steps; ``--resume``
+  continues from it and ends with the same results as an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from porefsi._version import __version__
+from porefsi.case.config import Case, case_from_dict, case_to_dict, case_to_toml
+from porefsi.coupling.loop import TIMESERIES_COLUMNS, CoupledRun, ExchangeRecord
+from porefsi.coupling.problem import build_problem
+from porefsi.errors import ConfigError, PorefsiError
+from porefsi.io import results
+from porefsi.io.network_vtk import write_network_vtp
+
+__all__ = ["run_case", "RunOutput"]
+
+
+@dataclasses.dataclass(frozen=True)
+class RunOutput:
+    """What :func:`run_case` returns: the summary and where the files are."""
+
+    summary: dict
+    directory: Path
+    timeseries: dict
+
+
+class _Progress:
+    """A one-line progress bar with ETA on stderr (only when it is a terminal, or when forced)."""
+
+    def __init__(self, total: int, enabled: bool):
+        self.total, self.enabled, self.t0 = total, enabled, time.perf_counter()
+
+    def update(self, done: int, t: float, extra: str = "") -> None:
+        if not self.enabled:
+            return
+        el = time.perf_counter() - self.t0
+        eta = el / max(done, 1) * (self.total - done)
+        bar = "#" * int(30 * done / self.total)
+        sys.stderr.write(f"\r[{bar:<30}] {done}/{self.total} t={t:.3g} s  {el:6.1f} s, ETA {eta:6.1f} s {extra}")
+        if done == self.total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def _snapshot_due(case: Case, t0: float, t1: float, last: bool) -> bool:
+    return last or any(t0 < s <= t1 + 1e-12 for s in case.output.snapshot_times)
+
+
+def _write_snapshot(out: Path, rec: ExchangeRecord, run: CoupledRun, series: dict) -> None:
+    vtk = out / "vtk"
+    vtk.mkdir(exist_ok=True)
+    mesh = run.problem.mesh
+    solid_file = vtk / f"solid_{rec.step:04d}.vtu"
+    mesh.write_vtu(solid_file, point_data={
+        "displacement": rec.displacement, "von_mises": rec.von_mises, "pore_force": rec.nodal_force})
+    net = rec.network
+    f = rec.flow
+    net_file = vtk / f"network_{rec.step:04d}.vtp"
+    write_network_vtp(net, net_file, point_data={
+        "pressure": np.nan_to_num(f.fluid_pressure), "nw_saturation": f.nw_saturation,
+        "pore_state": f.pore_state.astype(float)})
+    series["solid"].add(rec.t, solid_file)
+    series["network"].add(rec.t, net_file)
+
+
+def _figures(out: Path, ts: dict, snapshots: list, run: CoupledRun, progress: bool) -> list[str]:
+    from porefsi import plot
+
+    fig = out / "figures"
+    fig.mkdir(exist_ok=True)
+    made = [plot.plot_timeseries(ts, fig / "timeseries.png", title=run.problem.case.name)]
+    made.append(plot.plot_psd([(s["t"], s["radius"]) for s in snapshots], fig / "pore_size_distribution.png"))
+    net0 = run.problem.network
+    for s in snapshots:
+        tag = f"t{s['t']:07.3f}s".replace(".", "_")
+        made.append(plot.render_network(s["coords"], s["radius"], net0.throat_conns, 1.0 - s["nw_saturation"],
+                                        fig / f"drainage_{tag}.png", label="wetting saturation", clim=(0, 1)))
+        # Colour scales stop at the 99th percentile: the extremes sit at a few nodes next to loaded pores.
+        mag = np.linalg.norm(s["displacement"], axis=1) * 1e9
+        made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, mag,
+                                      fig / f"displacement_{tag}.png", label="|u| (nm)", cut="y",
+                                      clim=(0.0, max(float(np.percentile(mag, 99)), 1e-30))))
+        vm = s["von_mises"] * 1e-6
+        made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, vm,
+                                      fig / f"von_mises_{tag}.png", label="von Mises (MPa)", cmap="magma", cut="y",
+                                      clim=(0.0, max(float(np.percentile(vm, 99)), 1e-30))))
+    return [str(p.relative_to(out)) for p in made]
+
+
+def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False, progress: bool | None = None,
+             figures: bool | None = None, on_record: Callable[[ExchangeRecord], None] | None = None,
+             stop_after: int | None = None) -> RunOutput:
+    """Run ``case`` and write its results to ``out`` (default ``case.output.dir``).
+
+    Parameters
+    ----------
+    case : Case
+    out : path, optional
+        Run directory.
+    resume : bool
+        Continue from ``out/checkpoint.npz`` (the case must be the one saved in ``out/case.toml``).
+    progress : bool, optional
+        Progress bar on stderr (default: when stderr is a terminal).
+    figures : bool, optional
+        Override ``case.output.figures``.
+    on_record : callable, optional
+        Called with every :class:`~porefsi.coupling.loop.ExchangeRecord` (e.g. by case scripts).
+    stop_after : int, optional
+        Stop after this many exchange steps of this call (for tests of interrupted runs).
+
+    Raises
+    ------
+    ConfigError
+        ``resume`` without a checkpoint, or with a different case.
+    PorefsiError
+        Any failure of the run; the last checkpoint and the outputs so far are kept, and
+        ``summary.json`` records the error.
+    """
+    t_start = time.perf_counter()
+    out = Path(out if out is not None else case.output.dir)
+    out.mkdir(parents=True, exist_ok=True)
+    ckpt = out / "checkpoint.npz"
+    progress = sys.stderr.isatty() if progress is None else progress
+    figures = case.output.figures if figures is None else figures
+    if resume:
+        if not ckpt.is_file():
+            raise ConfigError(f"--resume: no checkpoint in {str(out)!r}; run without --resume to start")
+        arrays, meta = results.load_checkpoint(ckpt)
+        saved = case_from_dict(meta["case"], name=meta["case"].get("name", "case"))
+        if case_to_dict(saved) != case_to_dict(case):
+            raise ConfigError(f"--resume: the case differs from the one that started {str(out)!r}; "
+                              "resume with the same case file or start a new run directory")
+    else:
+        for stale in ("checkpoint.npz", "summary.json", "timeseries.csv", "solid.pvd", "network.pvd"):
+            (out / stale).unlink(missing_ok=True)
+    results.atomic_write_text(out / "case.toml", case_to_toml(case))
+
+    problem = build_problem(case)
+    if resume:
+        run = CoupledRun.restore(problem, arrays, meta)
+        rows = meta["rows"]
+        snapshots = _load_snapshots(arrays, meta)
+        series = {k: results.PvdSeries.read(out / f"{k}.pvd") for k in ("solid", "network")}
+        for s in series.values():
+            s.truncate(run.t)
+        setup_seconds = meta["setup_seconds"]
+    else:
+        run = CoupledRun(problem)
+        rows, snapshots = [], []
+        series = {k: results.PvdSeries(out / f"{k}.pvd") for k in ("solid", "network")}
+        setup_seconds = dict(problem.seconds)
+        rec0 = run.initial_record()
+        rows.append(rec0.row)
+        if case.output.vtk:
+            _write_snapshot(out, rec0, run, series)
+        snapshots.append(_snapshot(rec0))
+    bar = _Progress(run.n_steps, progress)
+    status, error = "completed", None
+    n_done = 0
+    try:
+        for rec in run.steps():
+            rows.append(rec.row)
+            t_prev = rows[-2]["time_s"]
+            last = run.step_index == run.n_steps
+            if _snapshot_due(case, t_prev, rec.t, last):
+                if case.output.vtk:
+                    _write_snapshot(out, rec, run, series)
+                snapshots.append(_snapshot(rec))
+            results.write_csv(out / "timeseries.csv", _columns(rows))
+            if on_record is not None:
+                on_record(rec)
+            if run.step_index % case.output.checkpoint_every == 0 or last:
+                _save(ckpt, run, case, rows, snapshots, setup_seconds)
+            bar.update(run.step_index, rec.t, f"Sw={rec.row['sw']:.3f}")
+            n_done += 1
+            if stop_after is not None and n_done >= stop_after:
+                status = "interrupted"
+                break
+    except PorefsiError as exc:
+        status, error = "failed", f"{type(exc).__name__}: {exc}"
+        _write_summary(out, case, run, rows, setup_seconds, t_start, status, error, [])
+        raise
+    ts = _columns(rows)
+    made = _figures(out, ts, snapshots, run, progress) if (figures and status == "completed") else []
+    summary = _write_summary(out, case, run, rows, setup_seconds, t_start, status, error, made)
+    return RunOutput(summary, out, ts)
+
+
+def _snapshot(rec: ExchangeRecord) -> dict:
+    return {"t": rec.t, "step": rec.step, "coords": rec.network.pore_coords.copy(),
+            "radius": rec.network.pore_radius.copy(), "nw_saturation": np.asarray(rec.flow.nw_saturation).copy(),
+            "displacement": rec.displacement, "von_mises": rec.von_mises}
+
+
+_SNAP_KEYS = ("coords", "radius", "nw_saturation", "displacement", "von_mises")
+
+
+def _save(path, run: CoupledRun, case: Case, rows, snapshots, setup_seconds) -> None:
+    arrays, meta = run.checkpoint()
+    for i, s in enumerate(snapshots):
+        for k in _SNAP_KEYS:
+            arrays[f"snap{i}_{k}"] = s[k]
+    meta.update(case=case_to_dict(case), rows=rows, setup_seconds=setup_seconds,
+                snapshots=[{"t": s["t"], "step": s["step"]} for s in snapshots], version=__version__)
+    results.save_checkpoint(path, arrays, meta)
+
+
+def _load_snapshots(arrays, meta) -> list:
+    return [{**s, **{k: arrays[f"snap{i}_{k}"] for k in _SNAP_KEYS}} for i, s in enumerate(meta["snapshots"])]
+
+
+def _columns(rows: list[dict]) -> dict:
+    return {k: [r[k] for r in rows] for k in TIMESERIES_COLUMNS}
+
+
+def _write_summary(out, case, run: CoupledRun, rows, setup_seconds, t_start, status, error, figures) -> dict:
+    p = run.problem
+    last = rows[-1] if rows else {}
+    mass = max((r["mass_balance_error"] for r in rows), default=0.0)
+    load = max((r["load_balance_error"] for r in rows), default=0.0)
+    bt = run.sim.breakthrough_time
+    summary = {
+        "status": status,
+        "error": error,
+        "case": case.name,
+        "porefsi_version": __version__,
+        "wall_seconds": time.perf_counter() - t_start,
+        "seconds_by_stage": {**setup_seconds, **run.seconds},
+        "n_pores": p.network.n_pores,
+        "n_throats": p.network.n_throats,
+        "n_nodes": p.mesh.n_nodes,
+        "n_tets": p.mesh.n_tets,
+        "removed_solid_fraction": p.mesh_result.removed_solid_fraction,
+        "n_exchange_steps": run.step_index,
+        "t_end_s": run.t,
+        "final_sw": last.get("sw"),
+        "breakthrough_time_s": None if not np.isfinite(bt) else float(bt),
+        "max_displacement_m": max((r["max_displacement_m"] for r in rows), default=0.0),
+        "max_von_mises_Pa": max((r["max_von_mises_Pa"] for r in rows), default=0.0),
+        "permeability_initial_m2": rows[0]["permeability_m2"] if rows else None,
+        "permeability_final_m2": last.get("permeability_m2"),
+        "mass_balance_error": mass,
+        "load_balance_error": load,
+        "interface_unloaded_pores": run.interface.n_unloaded,
+        "figures": figures,
+    }
+    results.write_json(out / "summary.json", summary)
+    return json.loads(json.dumps(results.jsonable(summary)))

@@ -1,0 +1,310 @@
+"""The staggered two-way coupled loop (the seed paper's algorithm 1), as a generator.
+
+One exchange step from ``t`` to ``t + Δt``:
+
+1. the DPN is advanced to ``t + 2Δt/3`` and to ``t + Δt``; the fluid pressures at ``t`` and
+   ``t + 2Δt/3`` become nodal forces through the interface (the TDG's left-Radau load samples);
+2. the solid takes one TDG step (or a quasi-static Newton solve at ``t + Δt``);
+3. the network follows the displacement (geometric update, re-extraction, or none) and the DPN
+   state is carried onto it;
+4. optionally 1-3 are repeated from the same start (sub-iterations) with Aitken relaxation of the
+   displacement until it stops changing (strong coupling).
+
+The total-Lagrangian solid takes its loads on the reference configuration, so the interface is
+built once on the reference mesh (re-built only when re-extraction changes the pores), and the
+geometric update always maps the *reference* network with the *total* displacement (no drift).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import pickle
+import time
+from collections.abc import Iterator
+
+import numpy as np
+
+from porefsi.coupling.interface import Interface
+from porefsi.coupling.problem import CoupledProblem, build_interface
+from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change
+from porefsi.errors import ConvergenceError, NetworkError
+from porefsi.flow.drainage import DrainageSimulator
+from porefsi.flow.permeability import absolute_permeability
+from porefsi.flow.state import FlowState
+from porefsi.image.ops import percolating_cluster
+from porefsi.integrators.tdg import TDGStepper
+from porefsi.network.extract import extract_network
+from porefsi.network.network import Network
+from porefsi.solid.static import solve_static
+from porefsi.solid.stress import element_cauchy, nodal_average, von_mises
+
+__all__ = ["ExchangeRecord", "CoupledRun", "TIMESERIES_COLUMNS"]
+
+#: Columns of the per-exchange-step time series (``timeseries.csv``).
+TIMESERIES_COLUMNS = (
+    "step", "time_s", "sw", "inlet_pressure_Pa", "capillary_pressure_Pa", "max_pore_pressure_Pa",
+    "total_pore_force_N", "max_displacement_m", "max_von_mises_Pa", "permeability_m2", "mean_pore_radius_m",
+    "n_events", "n_solves", "mass_balance_error", "load_balance_error", "subiterations", "coupling_residual",
+    "precoupling_iterations", "precoupling_Ea", "wall_s",
+)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ExchangeRecord:
+    """What one exchange step produced.
+
+    Attributes
+    ----------
+    step : int
+        Exchange step index (0 = the initial state at t = 0).
+    t : float
+        Time at the end of the step, s.
+    flow : FlowState
+        Drainage state at ``t``.
+    network : Network
+        Network at ``t`` (deformed).
+    displacement : ndarray, shape (Nn, 3)
+        Nodal displacement, m.
+    von_mises : ndarray, shape (Nn,)
+        Nodal (volume-averaged) von Mises stress, Pa.
+    nodal_force : ndarray, shape (Nn, 3)
+        Pore-pressure forces on the nodes at ``t``, N.
+    row : dict
+        The time-series row (:data:`TIMESERIES_COLUMNS`).
+    seconds : dict
+        Wall time of the step by stage: fluid, interface, solid, update, outputs, s.
+    """
+
+    step: int
+    t: float
+    flow: FlowState
+    network: Network
+    displacement: np.ndarray
+    von_mises: np.ndarray
+    nodal_force: np.ndarray
+    row: dict
+    seconds: dict
+
+
+def _pressure(state: FlowState) -> np.ndarray:
+    """Pore-wall loading pressure (volume-averaged fluid pressure; 0 where a pore is not simulated)."""
+    return np.nan_to_num(np.asarray(state.fluid_pressure, float), nan=0.0)
+
+
+class CoupledRun:
+    """A coupled simulation in progress: advance it with :meth:`steps`, save it with :meth:`checkpoint`.
+
+    Parameters
+    ----------
+    problem : CoupledProblem
+        Built by :func:`porefsi.coupling.problem.build_problem`.
+    """
+
+    def __init__(self, problem: CoupledProblem):
+        self.problem = problem
+        case = problem.case
+        self.dt = case.coupling.exchange_dt
+        self.t_end = case.drainage.t_end
+        self.n_steps = max(1, int(math.ceil(self.t_end / self.dt - 1e-9)))
+        self.step_index = 0
+        self.t = 0.0
+        self.network = problem.network
+        self.interface: Interface = problem.interface
+        self.labels = problem.extraction.labels
+        self.sim = DrainageSimulator(problem.network, problem.fluids, rate=case.drainage.rate, axis=case.image.axis)
+        self.model = problem.model
+        self.u = np.zeros(self.model.n_dofs)
+        self.v = np.zeros(self.model.n_dofs)
+        self._stepper = None
+        self.seconds = dict.fromkeys(("fluid", "interface", "solid", "update", "stress", "permeability"), 0.0)
+        self.precoupling_history: list[float] = []
+
+    # ---- solid --------------------------------------------------------------------------
+    def _stepper_for(self, dt: float):
+        if self._stepper is None or self._stepper.dt != dt:
+            cc = self.problem.case.coupling
+            self._stepper = TDGStepper(self.model, dt, n_iter=cc.tdg_iterations, make_solver=self.model.make_solver,
+                                       tangent="auto", load_rule=cc.tdg_load_rule)
+        return self._stepper
+
+    def load_times(self, t0: float, dt: float) -> tuple[float, float]:
+        """Times within the step at which the solid needs the fluid load (the last is always t0 + dt)."""
+        if self.problem.case.coupling.integrator == "static":
+            return (t0 + dt,)
+        return self._stepper_for(dt).load_times(t0)
+
+    def _solid_step(self, u, v, t0, dt, forces):
+        """One solid step; ``forces`` maps each of :meth:`load_times` to nodal forces (Nn, 3)."""
+        cc = self.problem.case.coupling
+        if cc.integrator == "static":
+            model = self.model.with_nodal_forces(forces[t0 + dt])
+            u1, _ = solve_static(model, t0 + dt, u0=u)
+            return u1, (u1 - u) / dt
+        st = self._stepper_for(dt)
+        loads = tuple(self.model.with_nodal_forces(forces[s]).external_force(s) for s in st.load_times(t0))
+        u1, v1, _ = st.step(u, v, t0, loads=loads)
+        return u1, v1
+
+    # ---- network ------------------------------------------------------------------------
+    def _update_network(self, U: np.ndarray):
+        """Network for displacement U (Nn, 3), and the interface/labels that go with it."""
+        mode = self.problem.case.network.update
+        p = self.problem
+        if mode == "none":
+            return self.network, self.interface, self.labels, None
+        if mode == "geometric":
+            return geometric_update(p.network, self.interface.pore_nodes, p.mesh.points, U), self.interface, \
+                self.labels, None
+        img = deformed_image(p.image, p.mesh.points, U, p.node_spacing)
+        ex = extract_network(percolating_cluster(img, p.case.image.axis).image)
+        new = ex.network
+        ea = mean_size_change(self.network, new)
+        if _same_topology(new, self.network):
+            return new, self.interface, self.labels, ea
+        itf = build_interface(p.case, new, ex.labels, p.mesh, p.image.voxel_size, p.image.origin)
+        return new, itf, ex.labels, ea
+
+    def _carry(self, sim: DrainageSimulator, net: Network) -> DrainageSimulator:
+        if net is sim.net:
+            return sim
+        if _same_topology(net, sim.net):
+            return sim.with_network(net)
+        raise NetworkError(
+            "re-extraction changed the pore network's topology, and carrying a drainage state across a "
+            "topology change is not supported yet; use network.update = 'geometric' (sub-voxel) for this case"
+        )
+
+    # ---- the loop -----------------------------------------------------------------------
+    def initial_record(self) -> ExchangeRecord:
+        """The state at t = 0 (before injection), as a record."""
+        U = self.model.expand(self.u, 0.0)
+        return self._record(self.sim.state, U, np.zeros_like(U), {}, 0, 0.0, None)
+
+    def steps(self) -> Iterator[ExchangeRecord]:
+        """Advance exchange step by exchange step to ``t_end``, yielding a record after each."""
+        cc = self.problem.case.coupling
+        while self.step_index < self.n_steps:
+            t_wall = time.perf_counter()
+            t0 = self.t
+            t1 = min(self.t_end, (self.step_index + 1) * self.dt)
+            dt = t1 - t0
+            secs = dict.fromkeys(("fluid", "interface", "solid", "update"), 0.0)
+            P0 = _pressure(self.sim.state)
+            sim_start = self.sim
+            U_start = self.model.expand(self.u, t0)
+            U_iter = None
+            omega, r_prev = 1.0, None
+            res_hist = []
+            net_k, itf_k, lab_k, ea = self.network, self.interface, self.labels, None
+            for _ in range(cc.subiterations):
+                tt = time.perf_counter()
+                sim = sim_start if cc.subiterations == 1 else sim_start.with_network(self.network)
+                sim = self._carry(sim, net_k)
+                pressures = {t0: P0}
+                for s in sorted(set(self.load_times(t0, dt)) | {t1}):
+                    pressures[s] = _pressure(sim.advance_to(s))
+                secs["fluid"] += time.perf_counter() - tt
+                tt = time.perf_counter()
+                forces = {s: itf_k.nodal_forces(P) for s, P in pressures.items()}
+                F1 = forces[t1]
+                secs["interface"] += time.perf_counter() - tt
+                tt = time.perf_counter()
+                u1, v1 = self._solid_step(self.u, self.v, t0, dt, forces)
+                U1 = self.model.expand(u1, t1)
+                secs["solid"] += time.perf_counter() - tt
+                if cc.subiterations > 1:
+                    r = U1 - (U_start if U_iter is None else U_iter)
+                    if r_prev is not None and cc.relaxation == "aitken":
+                        dr = r - r_prev
+                        den = float(np.vdot(dr, dr))
+                        omega = -omega * float(np.vdot(r_prev, dr)) / den if den > 0 else omega
+                    base = U_start if U_iter is None else U_iter
+                    U_new = base + omega * r
+                    res = float(np.linalg.norm(U1 - base)) / max(float(np.linalg.norm(U1)), 1e-300)
+                    res_hist.append(res)
+                    U_iter, r_prev = U_new, r
+                    U_use = U_new
+                else:
+                    U_use = U1
+                tt = time.perf_counter()
+                net_k, itf_k, lab_k, ea = self._update_network(U_use)
+                secs["update"] += time.perf_counter() - tt
+                if cc.subiterations > 1 and res_hist[-1] < cc.subiteration_tol:
+                    break
+            else:
+                if cc.subiterations > 1:
+                    raise ConvergenceError(
+                        f"fluid-solid sub-iterations did not converge in {cc.subiterations} iterations at "
+                        f"t = {t1:g} s (last relative change {res_hist[-1]:.3g}); raise coupling.subiterations, "
+                        "use relaxation = 'aitken', or a smaller exchange_dt", res_hist)
+            self.u, self.v, self.t = u1, v1, t1
+            tt = time.perf_counter()
+            self.sim = self._carry(sim, net_k)
+            self.network, self.interface, self.labels = net_k, itf_k, lab_k
+            secs["update"] += time.perf_counter() - tt
+            self.step_index += 1
+            rec = self._record(self.sim.state, U1, F1, secs, self.step_index, time.perf_counter() - t_wall,
+                               (len(res_hist) or 1, res_hist[-1] if res_hist else 0.0, ea))
+            for key, val in rec.seconds.items():
+                self.seconds[key] = self.seconds.get(key, 0.0) + val
+            yield rec
+
+    def _record(self, state: FlowState, U, F, secs, step, wall, sub) -> ExchangeRecord:
+        secs = dict(secs)
+        tt = time.perf_counter()
+        sigma = element_cauchy(self.model, self.u, self.t)
+        vm = nodal_average(self.model.mesh, von_mises(sigma))
+        secs["stress"] = time.perf_counter() - tt
+        tt = time.perf_counter()
+        k = absolute_permeability(self.network, self.problem.case.image.axis).k_m2
+        secs["permeability"] = time.perf_counter() - tt
+        P = _pressure(state)
+        n_sub, res, ea = sub if sub else (0, 0.0, None)
+        c = self.sim.counters
+        row = {
+            "step": step, "time_s": self.t, "sw": state.sw,
+            "inlet_pressure_Pa": state.inlet_pressure, "capillary_pressure_Pa": state.inlet_pressure,
+            "max_pore_pressure_Pa": float(P.max(initial=0.0)),
+            "total_pore_force_N": float(np.linalg.norm(F, axis=1).sum()),
+            "max_displacement_m": float(np.linalg.norm(U, axis=1).max(initial=0.0)),
+            "max_von_mises_Pa": float(vm.max(initial=0.0)), "permeability_m2": k,
+            "mean_pore_radius_m": float(np.mean(self.network.pore_radius)),
+            "n_events": c["n_events"], "n_solves": c["n_solves"], "mass_balance_error": state.mass_balance_error,
+            "load_balance_error": self.interface.load_balance_error(P), "subiterations": n_sub,
+            "coupling_residual": res, "precoupling_iterations": 0,
+            "precoupling_Ea": float("nan") if ea is None else ea, "wall_s": wall,
+        }
+        return ExchangeRecord(step, self.t, state, self.network, U, vm, F, row, secs)
+
+    # ---- checkpoints --------------------------------------------------------------------
+    def checkpoint(self) -> tuple[dict, dict]:
+        """(arrays, metadata) that :meth:`restore` turns back into this run, exactly."""
+        arrays = {
+            "u": self.u, "v": self.v, "labels": self.labels,
+            "simulator": np.frombuffer(pickle.dumps(self.sim, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
+            "network": np.frombuffer(pickle.dumps(self.network, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
+            "interface": np.frombuffer(pickle.dumps(self.interface, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
+        }
+        meta = {"step_index": self.step_index, "t": self.t, "seconds": self.seconds}
+        return arrays, meta
+
+    @classmethod
+    def restore(cls, problem: CoupledProblem, arrays: dict, meta: dict) -> CoupledRun:
+        """Rebuild a run from :meth:`checkpoint` output (on the same problem)."""
+        run = cls(problem)
+        run.u = np.array(arrays["u"], dtype=float)
+        run.v = np.array(arrays["v"], dtype=float)
+        run.labels = np.array(arrays["labels"])
+        run.sim = pickle.loads(arrays["simulator"].tobytes())  # noqa: S301 - our own checkpoint file
+        run.network = pickle.loads(arrays["network"].tobytes())  # noqa: S301
+        run.interface = pickle.loads(arrays["interface"].tobytes())  # noqa: S301
+        run.step_index = int(meta["step_index"])
+        run.t = float(meta["t"])
+        run.seconds = dict(meta["seconds"])
+        return run
+
+
+def _same_topology(a: Network, b: Network) -> bool:
+    return a.n_pores == b.n_pores and np.array_equal(a.throat_conns, b.throat_conns) and \
+        np.array_equal(a.pore_faces, b.pore_faces)
