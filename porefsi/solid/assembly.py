@@ -72,10 +72,7 @@ class P1Assembler:
         self.dN, self.vol = p1_gradients(mesh)
         nn = mesh.n_nodes
         self.n_dofs = 3 * nn
-        rows = np.repeat(self.tets, 4, axis=1).reshape(-1)  # (e, a, b) -> tets[e, a]
-        cols = np.tile(self.tets, (1, 4)).reshape(-1)  # (e, a, b) -> tets[e, b]
-        key = rows * nn + cols
-        del rows, cols
+        key = (self.tets[:, :, None] * nn + self.tets[:, None, :]).reshape(-1)  # (e, a, b) -> (t[e,a], t[e,b])
         uniq, inv = np.unique(key, return_inverse=True)
         del key
         nrow, ncol = uniq // nn, uniq % nn

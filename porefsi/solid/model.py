@@ -72,15 +72,19 @@ class SolidModel:
         if order == 2 and backend == "numba":
             raise InputError("the numba fast path is P1 only; use backend='skfem' (or 'auto') for P2")
         self.mesh, self.material, self.order = mesh, material, int(order)
-        self.feb = forms.make_basis(mesh, self.order)
         self.backend = "numba" if (backend == "auto" and order == 1) else ("skfem" if backend == "auto" else backend)
+        self._feb = None
+        if self.order == 1:  # no scikit-fem basis unless needed (it holds 12 gradient fields per element)
+            self.dof_points, self.n_full = mesh.points, 3 * mesh.n_nodes
+        else:
+            self.dof_points, self.n_full = self.feb.dof_points, self.feb.n_dofs
         self.bcs = tuple(bcs)
-        self.constraints = Constraints.build(self.feb.dof_points, self.bcs)
+        self.constraints = Constraints.build(self.dof_points, self.bcs)
         self.free = self.constraints.free
         self._p1 = P1Assembler(mesh, material) if self.backend == "numba" else None
         if self._p1 is not None:
             self._sel = submatrix_selector(self._p1.indptr, self._p1.indices, self.free)
-        self._traction_vec = np.zeros(self.feb.n_dofs)
+        self._traction_vec = np.zeros(self.n_full)
         for tr in tractions:
             self._traction_vec += forms.facet_load(self.feb, mesh.facets_tagged(FACET_TAGS[tr.tag]),
                                                    traction=tr.traction, pressure=tr.pressure)
@@ -126,9 +130,11 @@ class SolidModel:
         return len(self.free)
 
     @property
-    def n_full(self) -> int:
-        """Number of dofs before condensation."""
-        return self.feb.n_dofs
+    def feb(self) -> forms.FEBasis:
+        """The scikit-fem basis (built on first use for P1)."""
+        if self._feb is None:
+            self._feb = forms.make_basis(self.mesh, self.order)
+        return self._feb
 
     def full_displacement(self, u: np.ndarray, t: float) -> np.ndarray:
         """All dofs (n_full,) from the free dofs ``u`` (n,) and the prescribed motion at t."""
@@ -215,7 +221,7 @@ class SolidModel:
     def solver_factory(self) -> AMGSolverFactory:
         """The shared AMG factory (created on first use)."""
         if self._solver_factory is None:
-            self._solver_factory = AMGSolverFactory(self.feb.dof_points, self.free)
+            self._solver_factory = AMGSolverFactory(self.dof_points, self.free)
         return self._solver_factory
 
     def reactions(self, u: np.ndarray, t: float) -> dict[str, np.ndarray]:
@@ -230,7 +236,7 @@ class SolidModel:
         out = {}
         faces = sorted({spec.face for spec in self.bcs})
         for face in faces:
-            nodes = face_dofs(self.feb.dof_points, face, 0) // 3
+            nodes = face_dofs(self.dof_points, face, 0) // 3
             out[face] = r[nodes].sum(axis=0)
         return out
 
