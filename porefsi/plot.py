@@ -109,6 +109,12 @@ def _pv():
     os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
     import pyvista as pv
 
+    try:  # headless machines: VTK warns that there is no X server, then renders off-screen anyway
+        from vtkmodules.vtkCommonCore import vtkLogger
+
+        vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+    except ImportError:  # pragma: no cover - older VTK layouts
+        pass
     pv.OFF_SCREEN = True
     return pv
 

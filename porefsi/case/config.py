@@ -31,6 +31,7 @@ __all__ = [
     "case_to_dict",
     "case_to_toml",
     "schema_markdown",
+    "smoke_case",
 ]
 
 
@@ -356,3 +357,20 @@ def schema_markdown() -> str:
             out.append(f"| `{f.name}` | {dv} | {m['unit']} | {allowed} | {m['doc']} |")
         out.append("")
     return "\n".join(out)
+
+
+def smoke_case(case: Case) -> Case:
+    """A seconds-long version of ``case`` with the same physics and options.
+
+    Two exchange steps, a coarse mesh (coarsening >= 10), at most 100 test points per pore; every
+    other setting (interface method, network update, integrator, fluids, rates) is kept, so the
+    smoke run exercises the same code paths as the full one.
+    """
+    dt = case.coupling.exchange_dt
+    return case.replace(
+        name=f"{case.name}-smoke",
+        drainage={"t_end": min(case.drainage.t_end, 2 * dt)},
+        solid={"coarsen": max(case.solid.coarsen, 10)},
+        interface={"n_test_points": min(case.interface.n_test_points, 100)},
+        output={"snapshot_times": [t for t in case.output.snapshot_times if t <= 2 * dt], "checkpoint_every": 1},
+    )

@@ -1,93 +1,54 @@
-"""``porefsi run``: the main job (interim: extraction + permeability of the built-in sample).
+"""``porefsi run [CASE.toml] [-o DIR] [--resume]``: the coupled simulation, the main job.
 
-Until the coupled simulation lands (it replaces this module), ``porefsi run`` extracts the
-maximal-ball network of the built-in 120³ Berea sample (all pore clusters), computes its absolute
-permeability along x, y and z, prints a summary and writes ``DIR/network.npz``,
-``DIR/network.vtp`` (with the pressure field of each axis) and ``DIR/summary.json``.
+With no case file it runs the built-in default: the seed paper's table 2 set-up on the shipped
+120³ Berea crop. See :mod:`porefsi.case.run` for the files written.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import time
 from pathlib import Path
 
-from porefsi.cli._common import emit, to_jsonable
+from porefsi.cli._common import emit
 from porefsi.errors import InputError
 
 __all__ = ["register", "run"]
 
-DEFAULT_OUT = "porefsi-out"
+_HEADLINE = ("status", "wall_seconds", "n_pores", "n_throats", "n_nodes", "n_tets", "t_end_s", "final_sw",
+             "breakthrough_time_s", "max_displacement_m", "max_von_mises_Pa", "permeability_initial_m2",
+             "permeability_final_m2", "mass_balance_error", "load_balance_error")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the interim main job; see the module docstring."""
-    from porefsi.flow.permeability import absolute_permeability
-    from porefsi.image import load_sample
-    from porefsi.io.network_vtk import write_network_vtp
-    from porefsi.network.convert import save_network
-    from porefsi.network.extract import extract_network
+    """Load the case (or the default), run it, print the headline figures."""
+    from porefsi.case.config import Case, load_case, smoke_case
+    from porefsi.case.run import run_case
 
-    if args.case is not None:
-        raise InputError(
-            f"case files ({args.case}) arrive with the coupled simulation; for now run 'porefsi run' "
-            "without a CASE (built-in sample), or 'porefsi extract IMAGE' / 'porefsi permeability IMAGE'"
-        )
-    out = Path(args.output)
+    case = load_case(args.case) if args.case else Case()
+    if args.smoke:
+        case = smoke_case(case)
+    out = Path(args.output) if args.output else Path(case.output.dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"output {out} exists and is not a folder; pass another -o DIR")
-    t0 = time.perf_counter()
-    image = load_sample()
-    ext = extract_network(image)
-    net = ext.network
-    t_ext = time.perf_counter() - t0
-    z = net.coordination
-    summary: dict = {
-        "sample": "berea120",
-        "shape": list(image.shape),
-        "voxel_size_m": image.voxel_size,
-        "porosity": image.porosity,
-        "n_pores": net.n_pores,
-        "n_throats": net.n_throats,
-        "mean_coordination": float(z.mean()),
-        "seconds_extract": t_ext,
-    }
-    pressure = {}
-    for ax in "xyz":
-        res = absolute_permeability(net, ax)
-        summary[f"permeability_{ax}_m2"] = res.k_m2
-        summary[f"permeability_{ax}_mD"] = res.k_mD
-        summary[f"n_excluded_pores_{ax}"] = res.info["n_excluded_pores"]
-        pressure[f"pressure_{ax}"] = res.pressure
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        files = {
-            "network_file": save_network(net, out / "network.npz"),
-            "vtk_file": write_network_vtp(net, out / "network.vtp", point_data=pressure),
-            "summary_file": out / "summary.json",
-        }
-        summary.update({k: str(v) for k, v in files.items()})
-        summary["seconds"] = time.perf_counter() - t0
-        files["summary_file"].write_text(json.dumps(to_jsonable(summary), indent=2) + "\n")
-    except OSError as exc:
-        raise InputError(f"cannot write the outputs to {out}: {exc.strerror or exc}; pass another -o DIR") from None
-    emit(summary, args.json)
+    result = run_case(case, out, resume=args.resume, progress=None if not args.json else False,
+                      figures=False if args.no_figures else None)
+    summary = {k: result.summary.get(k) for k in _HEADLINE}
+    summary["output_dir"] = str(out)
+    emit(summary if not args.json else result.summary | {"output_dir": str(out)}, args.json)
     return 0
 
 
 def register(subparsers) -> None:
     """Add the ``run`` subcommand."""
     p = subparsers.add_parser(
-        "run",
-        help="run the main job (for now: network + permeability of the built-in sample)",
-        description="Without CASE: extract the pore network of the built-in 120^3 Berea sample, compute "
-        "its permeability along x, y, z, print a summary and write DIR/network.npz, DIR/network.vtp "
-        "and DIR/summary.json.",
-    )
-    p.add_argument("case", nargs="?", default=None, metavar="CASE",
-                   help="case file (arrives with the coupled simulation)")
-    p.add_argument("-o", "--output", default=DEFAULT_OUT, metavar="DIR",
-                   help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+        "run", help="coupled drainage + rock deformation (the main job)",
+        description="Run a coupled simulation: dynamic drainage on the pore network two-way coupled to the "
+        "deformation of the rock (finite elements). Without CASE: the built-in default (paper table 2 on the "
+        "shipped Berea crop).")
+    p.add_argument("case", nargs="?", default=None, metavar="CASE.toml", help="case file (default: built-in case)")
+    p.add_argument("-o", "--output", default=None, metavar="DIR", help="run directory (default: output.dir)")
+    p.add_argument("--resume", action="store_true", help="continue a killed run from DIR/checkpoint.npz")
+    p.add_argument("--smoke", action="store_true", help="a seconds-long version of the case (CI, quick checks)")
+    p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    p.add_argument("--json", action="store_true", help="print the whole summary as one JSON object")
     p.set_defaults(func=run)
