@@ -109,18 +109,6 @@ def test_permeability_plain_text_output(image_file, capsys):
     assert "permeability_mD" in out and "axis" in out
 
 
-def test_run_writes_outputs_on_the_builtin_sample(tmp_path, capsys):
-    out = tmp_path / "o"
-    assert main(["run", "-o", str(out), "--json"]) == 0
-    s = _json(capsys)
-    for f in ("network.npz", "network.vtp", "summary.json"):
-        assert (out / f).is_file()
-    saved = json.loads((out / "summary.json").read_text())
-    assert saved["n_pores"] == s["n_pores"] == load_network(out / "network.npz").n_pores
-    for ax in "xyz":
-        assert s[f"permeability_{ax}_m2"] > 0
-
-
 # --- bad input: exit 2, one line, no traceback -------------------------------------------------------
 def test_missing_file(tmp_path, capsys):
     _fails(capsys, ["extract", str(tmp_path / "nope.npy")], "nope.npy")
@@ -174,11 +162,6 @@ def test_image_options_with_network_file(image_file, tmp_path, capsys):
 def test_bad_output_paths(image_file, tmp_path, capsys):
     _fails(capsys, ["extract", str(image_file), "-o", str(tmp_path / "net.txt")], ".npz")
     _fails(capsys, ["extract", str(image_file), "--vtk", str(tmp_path / "no" / "n.vtp")], "does not exist")
-
-
-def test_run_with_case_is_not_yet_supported(tmp_path, capsys):
-    _fails(capsys, ["run", str(tmp_path / "case.toml"), "-o", str(tmp_path / "o")], "case")
-    assert not (tmp_path / "o").exists()
 
 
 def test_wrong_raw_size(tmp_path, capsys):
