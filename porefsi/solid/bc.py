@@ -8,7 +8,7 @@ them out of a lumped or consistent mass system adds no inertial load.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -191,5 +191,3 @@ def uniaxial_bcs(axis: str | int = "z", *, displacement: float = 0.0, rate: floa
         raise InputError(f"lateral must be 'roller' or 'free', got {lateral!r}")
     return specs
 
-
-LoadFunction = Callable[[float], np.ndarray]

