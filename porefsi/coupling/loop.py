@@ -159,11 +159,10 @@ class CoupledRun:
         img = deformed_image(p.image, p.mesh.points, U, p.node_spacing)
         ex = extract_network(percolating_cluster(img, p.case.image.axis).image)
         new = ex.network
-        ea = mean_size_change(self.network, new)
         if _same_topology(new, self.network):
-            return new, self.interface, self.labels, ea
+            return new, self.interface, self.labels, None
         itf = build_interface(p.case, new, ex.labels, p.mesh, p.image.voxel_size, p.image.origin)
-        return new, itf, ex.labels, ea
+        return new, itf, ex.labels, None
 
     def _carry(self, sim: DrainageSimulator, net: Network) -> DrainageSimulator:
         if net is sim.net:
@@ -197,9 +196,15 @@ class CoupledRun:
             omega, r_prev = 1.0, None
             res_hist = []
             net_k, itf_k, lab_k, ea = self.network, self.interface, self.labels, None
-            for _ in range(cc.subiterations):
+            reextract = self.problem.case.network.update == "reextract"
+            nc = self.problem.case.network
+            n_max = max(cc.subiterations, nc.precoupling_max_iter if reextract else 1)
+            ea_hist: list[float] = []
+            n_iter = 0
+            while True:
+                n_iter += 1
                 tt = time.perf_counter()
-                sim = sim_start if cc.subiterations == 1 else sim_start.with_network(self.network)
+                sim = sim_start if n_max == 1 else sim_start.with_network(self.network)
                 sim = self._carry(sim, net_k)
                 pressures = {t0: P0}
                 for s in sorted(set(self.load_times(t0, dt)) | {t1}):
@@ -214,30 +219,35 @@ class CoupledRun:
                 U1 = self.model.expand(u1, t1)
                 secs["solid"] += time.perf_counter() - tt
                 if cc.subiterations > 1:
-                    r = U1 - (U_start if U_iter is None else U_iter)
+                    base = U_start if U_iter is None else U_iter
+                    r = U1 - base
                     if r_prev is not None and cc.relaxation == "aitken":
                         dr = r - r_prev
                         den = float(np.vdot(dr, dr))
                         omega = -omega * float(np.vdot(r_prev, dr)) / den if den > 0 else omega
-                    base = U_start if U_iter is None else U_iter
-                    U_new = base + omega * r
-                    res = float(np.linalg.norm(U1 - base)) / max(float(np.linalg.norm(U1)), 1e-300)
-                    res_hist.append(res)
-                    U_iter, r_prev = U_new, r
-                    U_use = U_new
+                    res_hist.append(float(np.linalg.norm(r)) / max(float(np.linalg.norm(U1)), 1e-300))
+                    U_iter, r_prev = base + omega * r, r
+                    U_use = U_iter
                 else:
                     U_use = U1
                 tt = time.perf_counter()
-                net_k, itf_k, lab_k, ea = self._update_network(U_use)
+                net_prev = net_k
+                net_k, itf_k, lab_k, _ = self._update_network(U_use)
+                if reextract:  # the paper's pre-coupling measure between successive re-extractions (eq. 3.3)
+                    ea_hist.append(mean_size_change(net_prev, net_k))
                 secs["update"] += time.perf_counter() - tt
-                if cc.subiterations > 1 and res_hist[-1] < cc.subiteration_tol:
+                disp_ok = cc.subiterations == 1 or res_hist[-1] < cc.subiteration_tol
+                ea_ok = not reextract or ea_hist[-1] <= nc.precoupling_tol
+                if disp_ok and ea_ok:
                     break
-            else:
-                if cc.subiterations > 1:
+                if n_iter >= n_max:
+                    what = "fluid-solid sub-iterations" if not disp_ok else "pre-coupling re-extractions"
+                    hist = res_hist if not disp_ok else ea_hist
                     raise ConvergenceError(
-                        f"fluid-solid sub-iterations did not converge in {cc.subiterations} iterations at "
-                        f"t = {t1:g} s (last relative change {res_hist[-1]:.3g}); raise coupling.subiterations, "
-                        "use relaxation = 'aitken', or a smaller exchange_dt", res_hist)
+                        f"{what} did not converge in {n_iter} iterations at t = {t1:g} s (last change "
+                        f"{hist[-1]:.3g}); raise coupling.subiterations / network.precoupling_max_iter, use "
+                        "relaxation = 'aitken', or a smaller exchange_dt", hist)
+            ea = ea_hist[-1] if ea_hist else None
             self.u, self.v, self.t = u1, v1, t1
             tt = time.perf_counter()
             self.sim = self._carry(sim, net_k)
@@ -245,7 +255,7 @@ class CoupledRun:
             secs["update"] += time.perf_counter() - tt
             self.step_index += 1
             rec = self._record(self.sim.state, U1, F1, secs, self.step_index, time.perf_counter() - t_wall,
-                               (len(res_hist) or 1, res_hist[-1] if res_hist else 0.0, ea))
+                               (n_iter, res_hist[-1] if res_hist else 0.0, ea, len(ea_hist)))
             for key, val in rec.seconds.items():
                 self.seconds[key] = self.seconds.get(key, 0.0) + val
             yield rec
@@ -260,7 +270,7 @@ class CoupledRun:
         k = absolute_permeability(self.network, self.problem.case.image.axis).k_m2
         secs["permeability"] = time.perf_counter() - tt
         P = _pressure(state)
-        n_sub, res, ea = sub if sub else (0, 0.0, None)
+        n_sub, res, ea, n_pre = sub if sub else (0, 0.0, None, 0)
         c = self.sim.counters
         row = {
             "step": step, "time_s": self.t, "sw": state.sw,
@@ -272,7 +282,7 @@ class CoupledRun:
             "mean_pore_radius_m": float(np.mean(self.network.pore_radius)),
             "n_events": c["n_events"], "n_solves": c["n_solves"], "mass_balance_error": state.mass_balance_error,
             "load_balance_error": self.interface.load_balance_error(P), "subiterations": n_sub,
-            "coupling_residual": res, "precoupling_iterations": 0,
+            "coupling_residual": res, "precoupling_iterations": n_pre,
             "precoupling_Ea": float("nan") if ea is None else ea, "wall_s": wall,
         }
         return ExchangeRecord(step, self.t, state, self.network, U, vm, F, row, secs)
