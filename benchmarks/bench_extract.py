@@ -146,6 +146,46 @@ def run_pnextract(image, args):
 TOOLS = {"pnextract": run_pnextract, "porefsi": run_porefsi, "snow2": run_snow2}
 
 
+def figure(path, image=BUILTIN, k=60):
+    """Slice ``z = k`` of the extraction: pore regions, master balls cut by the slice, throats."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sys.path.insert(0, str(REPO))
+    from porefsi.image.voxel_image import VoxelImage
+    from porefsi.network.extract import extract_network
+
+    d = np.load(image)
+    img = VoxelImage(d["image"], float(d["voxel_size_m"]))
+    ext = extract_network(img)
+    net, vs = ext.network, img.voxel_size
+    lab = ext.labels[:, :, k].astype(float)
+    colours = np.random.default_rng(0).permutation(net.n_pores)  # neighbours get distinct shades
+    show = np.where(lab >= 0, colours[np.maximum(lab, 0).astype(int)], np.nan)
+    fig, ax = plt.subplots(figsize=(6.4, 6.0))
+    ax.imshow(np.ones_like(lab).T, cmap="Greys", vmin=0, vmax=1.6, origin="lower")  # solid: dark grey
+    ax.imshow(show.T, cmap="tab20", origin="lower", interpolation="nearest")
+    c = net.pore_coords / vs - 0.5
+    for p in np.flatnonzero(np.abs(c[:, 2] - k) < net.pore_radius / vs):
+        rr = np.sqrt((net.pore_radius[p] / vs) ** 2 - (c[p, 2] - k) ** 2)  # ball cut by the slice
+        ax.add_patch(plt.Circle(c[p, :2], rr, fill=False, lw=0.8, color="k"))
+        ax.plot(*c[p, :2], "k.", ms=2)
+    for t in range(net.n_throats):
+        a, b = net.throat_conns[t]
+        if abs(c[a, 2] - k) < 3 and abs(c[b, 2] - k) < 3:
+            ax.plot(c[[a, b], 0], c[[a, b], 1], "w-", lw=0.6)
+    ax.set(
+        title=f"Berea 120^3, slice z={k}: {net.n_pores} pores, {net.n_throats} throats",
+        xlabel="x (voxel)",
+        ylabel="y (voxel)",
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    print(f"wrote {path}")
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="built-in 120^3 image only")
@@ -153,7 +193,11 @@ def main(argv=None):
     p.add_argument("--images", nargs="+", type=Path, help="npz images (keys image, voxel_size_m)")
     p.add_argument("--peers-python", default="/tmp/peers-venv/bin/python")
     p.add_argument("--json", type=Path, help="also write the results here")
+    p.add_argument("--figure", type=Path, help="only draw a labelled slice of the built-in sample here")
     args = p.parse_args(argv)
+    if args.figure:
+        figure(args.figure)
+        return 0
     images = args.images or ([BUILTIN] if args.quick or not LARGE.exists() else [BUILTIN, LARGE])
     results = []
     for image in images:

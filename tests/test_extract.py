@@ -36,6 +36,9 @@ def _check_labels(ext, image):
     counts = np.bincount(lab[lab >= 0], minlength=net.n_pores)
     np.testing.assert_allclose(net.pore_volume, counts * vs**3, rtol=1e-12)
     assert ext.porosity == pytest.approx(np.count_nonzero(lab >= 0) / lab.size, rel=1e-15)
+    # each pore region is one 6-connected piece of the pore space
+    for p, sl in enumerate(ndimage.find_objects(lab + 1)):
+        assert ndimage.label(lab[sl] == p)[1] == 1
     # pore_faces is "region has a voxel in the boundary slice"
     for ax in range(3):
         for side, sl in ((0, 0), (1, -1)):
@@ -165,12 +168,13 @@ def test_berea_120_aggregates():
 
     Pore count (measured by benchmarks/bench_extract.py on this crop): pnextract, the reference
     maximal-ball code (pip 0.0.3), 168 pores; the seed paper 240; PoreSpy snow2 (no boundary
-    pores) 412; porefsi's defaults 296 (0.72 of snow2, inside the 0.55-0.75 that DESIGN.md
+    pores) 412; porefsi's defaults 276 (0.67 of snow2, inside the 0.55-0.75 that DESIGN.md
     section 5 reports for maximal balls vs watershed). [150, 500] holds every maximal-ball count
-    and rejects the failure modes: no noise floor (min_radius=1 gives > 10,000 pores) or no
-    family merging (extent rule alone ~960).
+    and rejects the failure modes, all measured: no noise floor (min_radius=1: 951 pores), no
+    joining of smaller balls (merge_ratio=0.1: 716; with extent=1: 4032) or over-merging
+    (extent=8, merge_ratio=0.5: 60).
     Coordination: 3-5 is the sandstone range (Dong & Blunt 2009); pnextract gives 3.0 and snow2
-    3.4 on this crop, porefsi 3.1.
+    3.4 on this crop, porefsi 3.15.
     """
     img = _berea()
     ext = extract_network(img)
@@ -178,11 +182,12 @@ def test_berea_120_aggregates():
     assert 150 <= net.n_pores <= 500
     z = net.coordination.mean()
     assert 3.0 <= z <= 5.0
-    # porosity: the pore voxels kept are exactly those the labels hold; only isolated specks
-    # without a ball of radius >= min_radius are dropped (< 0.5 % of the pore space)
+    # porosity: the pore voxels kept are exactly those the labels hold; only isolated clusters
+    # too small to hold a ball of radius min_radius = 2 voxels (33 voxels) are dropped: 0.39 %
+    # of the pore space measured, bounded at 1 %
     _check_labels(ext, img)
     lost = 1 - ext.info.n_labelled_voxels / ext.info.n_pore_voxels
-    assert 0 <= lost < 0.005
+    assert 0 <= lost < 0.01
     assert ext.porosity == pytest.approx(img.porosity * (1 - lost), rel=1e-12)
     _conduits_ok(net)
     for ax in "xyz":
@@ -198,9 +203,9 @@ def test_berea_120_aggregates():
     assert net.inlet("x")[big].any() and net.outlet("x")[big].any()
 
 
-def test_filled_voxels_join_their_nearest_pore():
-    # two spheres joined by a one-voxel-wide channel: no ball of radius >= 1.5 covers the
-    # channel, so it is filled breadth-first from both ends and splits in the middle
+def test_floods_meet_in_the_middle_of_a_uniform_channel():
+    # two spheres joined by a one-voxel-wide channel (a plateau of the distance map): the two
+    # floods enter it at the same level and meet in its middle
     ph = np.zeros((40, 13, 13), np.uint8)
     g = np.indices(ph.shape)
     for cx in (6, 33):
@@ -209,7 +214,7 @@ def test_filled_voxels_join_their_nearest_pore():
     ext = extract_network(VoxelImage(ph, 1e-6))
     net = ext.network
     assert net.n_pores == 2 and net.n_throats == 1
-    assert ext.info.n_filled_voxels > 0
+    assert ext.info.n_flooded_voxels > 0
     line = ext.labels[11:29, 6, 6]
     assert np.all(line[:9] == line[0]) and np.all(line[9:] == line[-1]) and line[0] != line[-1]
     assert net.throat_radius[0] == pytest.approx(0.5e-6)  # digital radius of a 1-voxel channel
@@ -252,6 +257,8 @@ def test_bad_input_raises_typed_errors_with_the_fix():
         extract_network(img, min_radius=0.5)
     with pytest.raises(InputError, match="extent"):
         extract_network(img, extent=float("nan"))
+    with pytest.raises(InputError, match="merge_ratio"):
+        extract_network(img, merge_ratio=1.5)
     with pytest.raises(TypeError, match="VoxelImage"):
         extract_network(np.ones((5, 5, 5)))
 
@@ -275,15 +282,16 @@ def test_isolated_specks_are_dropped_not_labelled():
     st.floats(0.15, 0.7),
     st.sampled_from([1.0, 1.5, 2.0]),
     st.sampled_from([1.5, 2.0, 4.0]),
+    st.sampled_from([0.5, 0.9, 1.0]),
 )
-def test_random_porous_images_give_valid_networks_or_typed_errors(seed, shape, porosity, min_radius, extent):
+def test_random_porous_images_give_valid_networks_or_typed_errors(seed, shape, porosity, min_radius, extent, ratio):
     # smoothed noise thresholded at a quantile: blobby pores of a few voxels, like a tiny rock
     rng = np.random.default_rng(seed)
     field = ndimage.gaussian_filter(rng.standard_normal(shape), 1.2, mode="wrap")
     ph = (field > np.quantile(field, 1 - porosity)).astype(np.uint8)
     img = VoxelImage(ph, 2e-6, origin=(1e-3, 0.0, -2e-3))
     try:
-        ext = extract_network(img, min_radius=min_radius, extent=extent)
+        ext = extract_network(img, min_radius=min_radius, extent=extent, merge_ratio=ratio)
     except PorefsiError as err:
         assert isinstance(err, (InputError, NetworkError))
         return
@@ -307,7 +315,7 @@ def test_random_porous_images_give_valid_networks_or_typed_errors(seed, shape, p
 def test_pore_count_against_porespy_snow2():
     """Maximal balls merge more than watershed: counts ~0.55-0.75 of snow2's (DESIGN.md section 5).
 
-    Measured on this crop: snow2 (boundary_width=0) 412 pores, porefsi 296 (0.72). [0.5, 0.9]
+    Measured on this crop: snow2 (boundary_width=0) 412 pores, porefsi 276 (0.67). [0.5, 0.9]
     allows for snow2 version changes while catching an extraction that stops merging (>= 1) or
     merges whole clusters (< 0.5).
     """

@@ -319,73 +319,101 @@ def _relabel(labels, table):
 
 
 # --------------------------------------------------------------------------------------------
-# Pore voxels no maximal ball covers: breadth-first growth from the labelled ones
+# Voxel labels: seeded priority flood on the distance map (marker watershed)
 # --------------------------------------------------------------------------------------------
 @jit
-def _fill_unlabelled(pore, labels):
-    """Give each unlabelled pore voxel the label of the nearest labelled one (6-connected BFS).
+def _flood(dt2, labels, buf, queue):
+    """Grow the seed labels over the pore space, highest distance-map values first.
 
-    Seeds are the unlabelled pore voxels with a labelled face neighbour, in C order, taking the
-    label of the first such neighbour in the order -x, +x, -y, +y, -z, +z; the growth is then
-    first-in first-out. Voxels in pore clusters without any label stay -1.
+    Level by level from the largest ``dt2`` down: the unlabelled voxels of the level that touch
+    a labelled face neighbour (C order; label of the first labelled neighbour in the order -x,
+    +x, -y, +y, -z, +z) start a first-in first-out growth into every unlabelled pore voxel
+    with ``dt2 >=`` the level. So a region only ever grows through voxels at least as wide as
+    the level being flooded, two floods meet at the narrowest section between them (the
+    saddle of the distance map; on a plateau, half-way), and every region stays 6-connected.
+    Pore voxels not connected to a seed stay -1.
+
+    Parameters
+    ----------
+    dt2 : ndarray of uint16 or int32, shape (nx, ny, nz)
+        0 on solid.
+    labels : ndarray of int32, shape (nx, ny, nz)
+        Seeds ``>= 0``, -1 elsewhere; grown in place.
+    buf, queue : ndarray of int32 or int64, shape (>= number of unlabelled pore voxels,)
+        Work space (voxel indices sorted by level; the growth queue).
 
     Returns
     -------
     int
-        Number of voxels labelled.
+        Voxels labelled.
     """
-    nx, ny, nz = pore.shape
+    nx, ny, nz = dt2.shape
     nyz = ny * nz
-    pf = pore.reshape(-1)
+    df = dt2.reshape(-1)
     lf = labels.reshape(-1)
-    nu = 0
-    for n in range(lf.size):
-        if pf[n] and lf[n] < 0:
-            nu += 1
-    if nu == 0:
-        return 0
-    queue = np.empty(nu, np.int64)
-    tail = 0
+    top = 0
+    for n in range(df.size):
+        if lf[n] < 0 and df[n] > top:
+            top = df[n]
+    count = np.zeros(top + 2, np.int64)
+    for n in range(df.size):
+        if lf[n] < 0 and df[n] > 0:
+            count[top - df[n]] += 1
+    start = np.zeros(top + 2, np.int64)
+    for t in range(1, top + 2):
+        start[t] = start[t - 1] + count[t - 1]
+    fill = start.copy()
+    for n in range(df.size):
+        if lf[n] < 0 and df[n] > 0:
+            key = top - df[n]
+            buf[fill[key]] = n
+            fill[key] += 1
     offs = np.array([-nyz, nyz, -nz, nz, -1, 1], np.int64)
-    for n in range(lf.size):
-        if not pf[n] or lf[n] != -1:
-            continue
-        i = n // nyz
-        j = (n // nz) % ny
-        k = n % nz
-        for t in range(6):
-            if (t == 0 and i == 0) or (t == 1 and i == nx - 1) or (t == 2 and j == 0):
+    done = 0
+    for key in range(top):
+        level = top - key
+        tail = 0
+        for s in range(start[key], start[key + 1]):
+            n = np.int64(buf[s])
+            if lf[n] != -1:
                 continue
-            if (t == 3 and j == ny - 1) or (t == 4 and k == 0) or (t == 5 and k == nz - 1):
-                continue
-            lab = lf[n + offs[t]]
-            if lab >= 0:
-                lf[n] = -2 - lab  # pending: not yet visible as a labelled neighbour
-                queue[tail] = n
-                tail += 1
-                break
-    for h in range(tail):
-        n = queue[h]
-        lf[n] = -2 - lf[n]
-    head = 0
-    while head < tail:
-        n = queue[head]
-        head += 1
-        i = n // nyz
-        j = (n // nz) % ny
-        k = n % nz
-        lab = lf[n]
-        for t in range(6):
-            if (t == 0 and i == 0) or (t == 1 and i == nx - 1) or (t == 2 and j == 0):
-                continue
-            if (t == 3 and j == ny - 1) or (t == 4 and k == 0) or (t == 5 and k == nz - 1):
-                continue
-            m = n + offs[t]
-            if pf[m] and lf[m] == -1:
-                lf[m] = lab
-                queue[tail] = m
-                tail += 1
-    return tail
+            i = n // nyz
+            j = (n // nz) % ny
+            k = n % nz
+            for t in range(6):
+                if (t == 0 and i == 0) or (t == 1 and i == nx - 1) or (t == 2 and j == 0):
+                    continue
+                if (t == 3 and j == ny - 1) or (t == 4 and k == 0) or (t == 5 and k == nz - 1):
+                    continue
+                lab = lf[n + offs[t]]
+                if lab >= 0:
+                    lf[n] = -2 - lab  # pending: invisible to the rest of this scan
+                    queue[tail] = n
+                    tail += 1
+                    break
+        for h in range(tail):
+            n = np.int64(queue[h])
+            lf[n] = -2 - lf[n]
+        head = 0
+        while head < tail:
+            n = np.int64(queue[head])
+            head += 1
+            i = n // nyz
+            j = (n // nz) % ny
+            k = n % nz
+            lab = lf[n]
+            for t in range(6):
+                if (t == 0 and i == 0) or (t == 1 and i == nx - 1) or (t == 2 and j == 0):
+                    continue
+                if (t == 3 and j == ny - 1) or (t == 4 and k == 0) or (t == 5 and k == nz - 1):
+                    continue
+                m = n + offs[t]
+                if lf[m] == -1 and df[m] >= level:
+                    lf[m] = lab
+                    queue[tail] = m
+                    tail += 1
+        done += tail
+    return done
 
 
 # --------------------------------------------------------------------------------------------

@@ -2,14 +2,16 @@
 
 Pipeline (each stage a numba kernel in :mod:`porefsi.network._kernels`):
 
-1. squared Euclidean distance map of the pore space (int32, separable lower-envelope EDT);
+1. squared Euclidean distance map of the pore space (uint16, int32 if a radius reaches 256
+   voxels; separable lower-envelope EDT);
 2. candidate balls at every pore voxel whose radius reaches the noise floor, minus those
    contained in a neighbour's ball: the *maximal balls*;
 3. master/slave hierarchy: balls visited largest first adopt the largest ball they overlap
-   (if its family master is within ``extent`` master radii), else become masters = pores;
-   every voxel a ball covers is painted with the first (largest) ball covering it;
-4. pore voxels no ball covers get the label of the nearest labelled voxel (breadth-first);
-5. throats are the interfaces between pore labels; lengths from centre-to-throat distances.
+   (if its family master is near enough or clearly larger), else become masters = pores;
+4. voxel labels: the master-ball centres seed a priority flood on the distance map, so
+   regions are connected and meet at the narrowest sections;
+5. throats are the interfaces between pore labels (pores separated by no real constriction
+   are merged first); lengths from centre-to-throat distances.
 
 See ``docs/extraction.md`` for every definition and the measured performance.
 """
@@ -46,7 +48,7 @@ class ExtractionInfo:
     Attributes
     ----------
     seconds : dict of str to float
-        Wall time per stage (``edt``, ``maximal_balls``, ``families``, ``fill``, ``throats``,
+        Wall time per stage (``edt``, ``maximal_balls``, ``families``, ``flood``, ``throats``,
         ``assemble``) and ``total``, s.
     n_candidate_balls : int
         Pore voxels whose ball radius reaches ``min_radius``.
@@ -57,12 +59,14 @@ class ExtractionInfo:
         Pore voxels in the image.
     n_labelled_voxels : int
         Pore voxels assigned to a pore (the rest lie in clusters without any maximal ball).
-    n_filled_voxels : int
-        Pore voxels labelled by the breadth-first growth (no maximal ball covers them).
+    n_flooded_voxels : int
+        Pore voxels labelled by the flood (all labelled voxels but the seeds).
     min_radius : float
         Noise floor used, voxels.
     extent : float
         Family reach used, master radii.
+    merge_ratio : float
+        Size ratio used for joining and merging.
     """
 
     seconds: dict
@@ -72,9 +76,10 @@ class ExtractionInfo:
     n_throats: int
     n_pore_voxels: int
     n_labelled_voxels: int
-    n_filled_voxels: int
+    n_flooded_voxels: int
     min_radius: float
     extent: float
+    merge_ratio: float
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -164,7 +169,7 @@ def _distance_map(pore: np.ndarray) -> np.ndarray:
     return dt2
 
 
-def _check(image, min_radius, extent):
+def _check(image, min_radius, extent, merge_ratio):
     if not isinstance(image, VoxelImage):
         raise TypeError(f"extract_network needs a porefsi VoxelImage, got {type(image).__name__}")
     if min(image.shape) < 3:
@@ -183,14 +188,16 @@ def _check(image, min_radius, extent):
             "undefined; crop to a region containing rock"
         )
     if not (np.isfinite(min_radius) and min_radius >= 1.0):
-        raise InputError(f"min_radius must be >= 1 voxel, got {min_radius!r}; the default is 1.5")
+        raise InputError(f"min_radius must be >= 1 voxel, got {min_radius!r}; the default is 2")
     if not (np.isfinite(extent) and extent >= 1.0):
         raise InputError(f"extent must be >= 1 master radius, got {extent!r}; the default is 2")
+    if not (np.isfinite(merge_ratio) and 0.0 < merge_ratio <= 1.0):
+        raise InputError(f"merge_ratio must be in (0, 1], got {merge_ratio!r}; the default is 0.9")
     return n_pore
 
 
 def extract_network(
-    image: VoxelImage, *, min_radius: float = 1.5, extent: float = 2.0, merge_ratio: float = 0.9
+    image: VoxelImage, *, min_radius: float = 2.0, extent: float = 2.0, merge_ratio: float = 0.9
 ) -> Extraction:
     """Extract a maximal-ball pore network from a segmented image.
 
@@ -198,14 +205,21 @@ def extract_network(
     ----------
     image : VoxelImage
         Segmented image, 1 = pore.
-    min_radius : float, default 1.5
+    min_radius : float, default 2.0
         Noise floor, voxels: only balls with ``sqrt(dt2) >= min_radius`` are candidates (the
-        distance to the nearest solid voxel centre; 1 keeps every pore voxel). Raising it removes
-        pores in narrow crevices; their voxels join neighbouring pores.
+        distance to the nearest solid voxel centre; 1 keeps every pore voxel). A pore must hold
+        a ball of this radius: smaller maxima of the distance map are resolution noise (a
+        one-voxel error on a radius-1 ball is 100 %). Their voxels join neighbouring pores.
     extent : float, default 2.0
-        A ball joins a pore only if its centre lies within ``extent`` radii of the pore's master
-        ball centre; farther balls start a new pore. This splits long uniform channels into a
-        chain of pores about ``extent`` radii apart instead of one pore spanning the sample.
+        Family reach, in master radii: a ball of about the master's size joins the master's pore
+        only if its centre lies within ``extent`` master radii of the master's centre, else it
+        starts a new pore. This splits long uniform channels into chains of pores about
+        ``extent`` radii apart instead of one pore spanning the sample; >= 1.
+    merge_ratio : float, default 0.9
+        A ball smaller than ``merge_ratio`` times a master's radius joins that master's pore at
+        any distance (channels and crevices belong to the body they open into), and two pores
+        whose throat radius is at least ``merge_ratio`` times the smaller pore radius are
+        merged (no real constriction separates them); in (0, 1].
 
     Returns
     -------
@@ -249,7 +263,8 @@ def extract_network(
     """
     min_radius = float(min_radius)
     extent = float(extent)
-    n_pore = _check(image, min_radius, extent)
+    merge_ratio = float(merge_ratio)
+    n_pore = _check(image, min_radius, extent, merge_ratio)
     pore = image.phases
     secs: dict[str, float] = {}
     t_all = t0 = time.perf_counter()
@@ -272,22 +287,23 @@ def extract_network(
 
     t0 = time.perf_counter()
     master = kern._families(dt2, balls, sqrt_tab, extent, merge_ratio, labels)
-    is_master = master == np.arange(balls.size, dtype=np.int32)
-    masters = np.flatnonzero(is_master)
-    pore_id = np.cumsum(is_master, dtype=np.int32) - np.int32(1)  # pore index at master positions
-    del is_master
-    kern._relabel(labels, pore_id[master])
-    del master, pore_id
+    n_balls = int(balls.size)
+    centre_idx = balls[master == np.arange(balls.size, dtype=np.int32)]
+    del master, balls
     secs["families"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    n_filled = int(kern._fill_unlabelled(pore, labels))
-    secs["fill"] = time.perf_counter() - t0
+    labels.fill(-1)
+    labels.reshape(-1)[centre_idx] = np.arange(centre_idx.size, dtype=np.int32)  # one seed voxel each
+    n_seed = int(centre_idx.size)
+    itype = np.int32 if pore.size < np.iinfo(np.int32).max else np.int64
+    n_work = n_pore - n_seed
+    n_flooded = int(kern._flood(dt2, labels, np.empty(n_work, itype), np.empty(n_work, itype)))
+    secs["flood"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    n_p = int(masters.size)
+    n_p = int(centre_idx.size)
     conns, w, point, _ = kern._interfaces(labels, dt2, np.int64(n_p))
-    centre_idx = balls[masters]
     r_pore = digital_radius(dt2.reshape(-1)[centre_idx])
     centre = np.stack(np.unravel_index(centre_idx, image.shape), axis=1).astype(float)
     keep, roots = _merge_shallow(centre, r_pore, conns, digital_radius(np.maximum(w, 1)), merge_ratio, extent)
@@ -329,14 +345,15 @@ def extract_network(
     info = ExtractionInfo(
         seconds=secs,
         n_candidate_balls=int(n_cand),
-        n_maximal_balls=int(balls.size),
+        n_maximal_balls=n_balls,
         n_pores=n_p,
         n_throats=int(conns.shape[0]),
         n_pore_voxels=n_pore,
         n_labelled_voxels=int(count.sum()),
-        n_filled_voxels=n_filled,
+        n_flooded_voxels=n_flooded,
         min_radius=min_radius,
         extent=extent,
+        merge_ratio=merge_ratio,
     )
     return Extraction(network=net, labels=labels, info=info)
 

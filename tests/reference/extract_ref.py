@@ -85,37 +85,39 @@ def families(dt2, balls, extent, ratio):
     return np.array(master, dtype=np.int64), labels
 
 
-def fill_unlabelled(pore, labels):
-    """Multi-source BFS growth of labels into unlabelled pore voxels (see the kernel)."""
+def _face_neighbours(v, shape):
+    for ax in range(3):
+        for step in (-1, 1):
+            q = list(v)
+            q[ax] += step
+            if 0 <= q[ax] < shape[ax]:
+                yield tuple(q)
+
+
+def flood(dt2, labels):
+    """Seeded flood, level by level from the top (see ``_kernels._flood``), with a deque."""
     lab = labels.copy()
-    shape = pore.shape
-    offsets = [(-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)]
-
-    def neighbours(v):
-        for o in offsets:
-            q = (v[0] + o[0], v[1] + o[1], v[2] + o[2])
-            if all(0 <= q[a] < shape[a] for a in range(3)):
-                yield q
-
-    queue = deque()
-    seeds = {}
-    for v in product(*[range(s) for s in shape]):
-        if pore[v] and lab[v] == -1:
-            for q in neighbours(v):
-                if lab[q] >= 0:
-                    seeds[v] = int(lab[q])
-                    queue.append(v)
-                    break
-    for v, s in seeds.items():
-        lab[v] = s
-    n = len(queue)
-    while queue:
-        v = queue.popleft()
-        for q in neighbours(v):
-            if pore[q] and lab[q] == -1:
-                lab[q] = lab[v]
-                queue.append(q)
-                n += 1
+    shape = dt2.shape
+    n = 0
+    for level in range(int(dt2.max()), 0, -1):
+        queue = deque()
+        starts = []
+        for v in product(*[range(s) for s in shape]):  # C order
+            if dt2[v] == level and lab[v] == -1:
+                for q in _face_neighbours(v, shape):
+                    if lab[q] >= 0:
+                        starts.append((v, int(lab[q])))
+                        break
+        for v, s in starts:
+            lab[v] = s
+            queue.append(v)
+        while queue:
+            v = queue.popleft()
+            n += 1
+            for q in _face_neighbours(v, shape):
+                if lab[q] == -1 and dt2[q] >= level:
+                    lab[q] = lab[v]
+                    queue.append(q)
     return lab, n
 
 
