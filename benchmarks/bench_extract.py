@@ -162,11 +162,19 @@ def figure(path, image=BUILTIN, k=60):
     ext = extract_network(img)
     net, vs = ext.network, img.voxel_size
     lab = ext.labels[:, :, k].astype(float)
-    colours = np.random.default_rng(0).permutation(net.n_pores)  # neighbours get distinct shades
+    palette = [c for i, c in enumerate(plt.get_cmap("tab20").colors) if i not in (14, 15)]  # no greys
+    colours = np.random.default_rng(0).integers(0, len(palette), net.n_pores)
     show = np.where(lab >= 0, colours[np.maximum(lab, 0).astype(int)], np.nan)
     fig, ax = plt.subplots(figsize=(6.4, 6.0))
-    ax.imshow(np.ones_like(lab).T, cmap="Greys", vmin=0, vmax=1.6, origin="lower")  # solid: dark grey
-    ax.imshow(show.T, cmap="tab20", origin="lower", interpolation="nearest")
+    ax.imshow(np.ones_like(lab).T, cmap="Greys", vmin=0, vmax=3, origin="lower")  # solid: light grey
+    ax.imshow(
+        show.T,
+        cmap=matplotlib.colors.ListedColormap(palette),
+        vmin=-0.5,
+        vmax=len(palette) - 0.5,
+        origin="lower",
+        interpolation="nearest",
+    )
     c = net.pore_coords / vs - 0.5
     for p in np.flatnonzero(np.abs(c[:, 2] - k) < net.pore_radius / vs):
         rr = np.sqrt((net.pore_radius[p] / vs) ** 2 - (c[p, 2] - k) ** 2)  # ball cut by the slice
