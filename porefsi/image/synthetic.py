@@ -100,10 +100,10 @@ def _positive_int(name, value):
 
 
 def sphere_lattice(
-    n=(3, 3, 3),
+    n: tuple[int, int, int] = (3, 3, 3),
     spacing: int = 14,
-    pore_radius=5.0,
-    throat_radius=2.0,
+    pore_radius: float | np.ndarray = 5.0,
+    throat_radius: float | np.ndarray = 2.0,
     voxel_size: float = 1e-5,
     margin: int | None = None,
 ) -> SyntheticLattice:
@@ -249,9 +249,9 @@ def _disc_pixels(r):
 
 
 def cylinder_bundle(
-    radii_vox=(2.0, 3.0, 4.0),
-    axis="z",
-    shape=None,
+    radii_vox: tuple[float, ...] | np.ndarray = (2.0, 3.0, 4.0),
+    axis: str | int = "z",
+    shape: tuple[int, int, int] | None = None,
     voxel_size: float = 1e-5,
     gap: int = 2,
     length: int = 32,

@@ -121,7 +121,7 @@ def _sum_of_three_squares(n: np.ndarray) -> np.ndarray:
     return ~(nz & (m % 8 == 7))
 
 
-def digital_radius(dt2) -> np.ndarray:
+def digital_radius(dt2: np.ndarray | int) -> np.ndarray:
     r"""Radius (voxels) of the ball whose centre has squared distance map value ``dt2``.
 
     ``dt2`` is the squared distance from a voxel centre to the nearest solid voxel centre.
@@ -235,10 +235,15 @@ def extract_network(
     InputError
         All-solid or all-pore image, an axis shorter than 3 voxels, or bad parameters.
     NetworkError
-        No ball reaches ``min_radius`` (no pore found).
+        No ball reaches ``min_radius`` (no pore found), or no two pore regions touch (no throat).
 
     Notes
     -----
+    Voxel labels come from a priority flood of the distance map seeded at the pore centres
+    (a marker watershed whose markers are the maximal-ball pores): every region is connected,
+    contains its centre, and meets its neighbours at the narrowest section between them. Pore
+    clusters holding no pore stay -1 and are not counted in :attr:`Extraction.porosity`.
+
     Conduit lengths: with ``d_i`` the distance from pore ``i``'s centre to the throat point (the
     interface face of largest inscribed radius) and ``a_i = sqrt(R_i^2 - r_t^2)`` the distance
     over which pore ``i``'s sphere narrows to the throat radius, the pore-side length is
