@@ -51,6 +51,8 @@ def run_size(img, coarsen, args):
     print(f"\n--- coarsen {coarsen} ---", flush=True)
     t_mesh, mres = best(lambda: mesh_solid(img, coarsen=coarsen), 1)
     mesh = mres.mesh
+    if mesh.n_tets > 200_000:  # one repeat at the large size (minutes per configuration otherwise)
+        args = argparse.Namespace(**{**vars(args), "repeat": 1})
     print(f"mesh: {mesh.n_nodes} nodes, {mesh.n_tets} tets, removed {mres.removed_solid_fraction:.2e}, "
           f"{t_mesh:.2f} s")
     mat = StVenantKirchhoff(20e9, 0.28)

@@ -185,9 +185,11 @@ class AMGSolverFactory:
             self.setup(A)
 
         def solve(b: np.ndarray) -> np.ndarray:
+            # a reused hierarchy gets at most rebuild_iterations before it is replaced
+            cap = self.maxiter if state["fresh"] else self.rebuild_iterations
             try:
-                x, info = pcg(A, b, self.precondition, rtol=self.rtol, maxiter=self.maxiter, what="AMG-CG")
-                ok = info.iterations <= self.rebuild_iterations or state["fresh"]
+                x, info = pcg(A, b, self.precondition, rtol=self.rtol, maxiter=cap, what="AMG-CG")
+                ok = True
             except ConvergenceError:
                 if state["fresh"]:
                     raise
