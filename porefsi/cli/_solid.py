@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from porefsi.cli._common import add_image_args, emit, positive_float
+from porefsi.cli._common import add_image_args, emit, image_from_args, positive_float
 
 __all__ = ["register", "run"]
 
@@ -41,24 +41,6 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _read_image(args):
-    try:
-        from porefsi.cli._common import image_from_args
-    except ImportError:  # pragma: no cover - until the shared reader lands
-        image_from_args = None
-    if image_from_args is not None:
-        return image_from_args(args, args.image)
-    from porefsi.errors import InputError  # pragma: no cover
-    from porefsi.image.voxel_image import VoxelImage  # pragma: no cover
-
-    path = args.image or Path(__file__).resolve().parents[1] / "data" / "berea_icl_120_paper.npz"
-    if not str(path).endswith(".npz"):  # pragma: no cover
-        raise InputError(f"cannot read {path}: only .npz until porefsi.image.read_image is available")
-    d = np.load(path)  # pragma: no cover
-    vs = args.voxel_size or float(d["voxel_size_m"])  # pragma: no cover
-    return VoxelImage(d["image"], vs)  # pragma: no cover
-
-
 def run(args) -> int:
     """Mesh, compress, write, summarise."""
     from porefsi.solid.materials import make_material
@@ -66,7 +48,7 @@ def run(args) -> int:
     from porefsi.solid.static import uniaxial_compression
 
     t0 = time.perf_counter()
-    image = _read_image(args)
+    image = image_from_args(args, args.image)
     material = make_material(args.material, E=args.youngs_modulus, nu=args.poisson)
     mres = mesh_solid(image, coarsen=args.coarsen, support_axis=args.axis)
     mesh = mres.mesh
