@@ -26,8 +26,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
-import resource
 import shutil
 import subprocess
 import sys
@@ -121,25 +119,36 @@ def run_pnextract(image, args):
             f"DimSize = {nx} {ny} {nz}\nElementSpacing = {vs_um} {vs_um} {vs_um}\nOffset = 0 0 0\n"
             "ElementDataFile = img.raw\n"
         )
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        t = time.perf_counter()
-        out = subprocess.run([str(exe), "img.mhd"], cwd=tmp, capture_output=True, text=True)
-        wall = time.perf_counter() - t
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        if out.returncode != 0:
-            raise RuntimeError(out.stdout[-300:] + out.stderr[-300:])
+        # a fresh Python parent, so RUSAGE_CHILDREN holds pnextract alone
+        wrapper = (
+            "import json, resource, subprocess, sys, time; t = time.perf_counter(); "
+            "r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+            "u = resource.getrusage(resource.RUSAGE_CHILDREN); "
+            "print(json.dumps(dict(rc=r.returncode, out=r.stdout[-4000:], err=r.stderr[-500:], "
+            "cpu=u.ru_utime + u.ru_stime, peak_kb=u.ru_maxrss, wall=time.perf_counter() - t)))"
+        )
+        out = subprocess.run(
+            [sys.executable, "-c", wrapper, str(exe), "img.mhd"], cwd=tmp, capture_output=True, text=True
+        )
+        res = json.loads(out.stdout.strip().splitlines()[-1])
+        if res["rc"] != 0:
+            raise RuntimeError(res["out"][-300:] + res["err"])
         n_p = int((tmp / "img_node1.dat").read_text().split()[0])
-        n_t = int((tmp / "img_link1.dat").read_text().split()[0])
-    m = re.search(r"(\d+)-2 pores, (\d+) throats", out.stdout)
+        # link1.dat: count, then one row per throat "id pore1 pore2 ..."; pores -1 and 0 are
+        # pnextract's inlet/outlet reservoirs: count the throats between two real pores only
+        rows = (tmp / "img_link1.dat").read_text().splitlines()[1:]
+        ends = np.array([[int(v) for v in r.split()[1:3]] for r in rows if r.strip()]).reshape(-1, 2)
+        n_t = int(np.sum(np.all(ends > 0, axis=1)))
+        n_t_boundary = len(ends) - n_t
     return dict(
-        cpu=(after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
+        cpu=res["cpu"],
         base_kb=0,
-        peak_kb=after.ru_maxrss,  # the largest child so far: run pnextract before other children
+        peak_kb=res["peak_kb"],
         n_pores=n_p,
         n_throats=n_t,
+        n_boundary_throats=n_t_boundary,
         z=2 * n_t / n_p,
-        wall=wall,
-        log_counts=m.groups() if m else None,
+        wall=res["wall"],
     )
 
 
@@ -212,7 +221,7 @@ def main(argv=None):
         n_vox = int(np.prod(np.load(image)["image"].shape))
         print(f"\n== {image.name}: {n_vox:,} voxels ==")
         row = {}
-        for tool in [t for t in TOOLS if t in args.tools]:  # pnextract first: see run_pnextract
+        for tool in [t for t in TOOLS if t in args.tools]:
             try:
                 r = TOOLS[tool](image, args)
             except Exception as err:  # a missing peer must not stop the others
@@ -227,6 +236,8 @@ def main(argv=None):
                 f"peak {r['peak_mb']:7.0f} MB ({r['bytes_per_voxel']:.1f} B/voxel above baseline)  "
                 f"pores {r['n_pores']:7d}  throats {r['n_throats']:7d}  Z {r['z']:.2f}"
             )
+            if "n_boundary_throats" in r:
+                print(f"{'':10s} (+ {r['n_boundary_throats']} throats to its inlet/outlet reservoirs, not counted)")
             if "stages" in r:
                 print(f"{'':10s} stages (wall s): {r['stages']}")
         if "porefsi" in row:
