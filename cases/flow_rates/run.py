@@ -1,0 +1,205 @@
+"""Case ``flow_rates``: deformation and stress vs injection rate (paper cases A-D, figure 9).
+
+Coupled runs of ``case.toml`` at the paper's four rates (A 1.25e-13, B 2.5e-13, C 5e-11,
+D 5e-10 m^3/s) and intermediate ones, each for the paper's 20 s. Per rate: the largest
+displacement and von Mises stress over the run and at its end, the final saturation, the
+breakthrough time and the capillary number Ca = mu_n (Q / A) / sigma (A = inlet face area).
+
+A fluid-only scan on a finer grid of rates (the DPN is cheap; the solid is linear in the load at
+these strains) locates where the behaviour changes: the inlet pressure at 20 s and its peak over
+the run (every DPN event, so transients shorter than an exchange step are seen), against
+
+- Pc_bt, the capillary pressure of the quasi-static (invasion-percolation) path at breakthrough;
+- dP_visc(Q) = Q mu_n L / (k A), the viscous pressure drop of oil through the network
+  (k the network's absolute permeability): the crossover rate Q* solves dP_visc(Q*) = Pc_bt.
+
+Outputs: ``figures/flow_rates.png``, ``results.json``.
+Usage: ``python cases/flow_rates/run.py [--smoke] [--out DIR]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from porefsi.case.config import load_case, smoke_case
+from porefsi.coupling.loop import CoupledRun
+from porefsi.coupling.problem import build_problem
+from porefsi.flow.drainage import DrainageSimulator
+from porefsi.flow.invasion import invasion_percolation
+from porefsi.flow.permeability import absolute_permeability
+
+HERE = Path(__file__).resolve().parent
+PAPER_CASES = {"A": 1.25e-13, "B": 2.5e-13, "C": 5e-11, "D": 5e-10}
+RATES_FULL = sorted({*PAPER_CASES.values(), 1e-12, 5e-12, 2e-11, 1e-10, 2e-10})
+RATES_SMOKE = [1.25e-13, 5e-10]
+SCAN_FULL = np.logspace(-13, -9, 25)
+SCAN_SMOKE = np.logspace(-13, -9, 3)
+#: The paper (section 3.2, figure 9): deformation and stress increase monotonically with rate up
+#: to a critical point slightly below 1e-10 m^3/s; beyond it the solid deforms more significantly.
+PAPER = {"cases_m3_s": PAPER_CASES, "critical_rate_m3_s": "slightly below 1e-10"}
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    """Command line: ``--smoke``, ``--out DIR``."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps, 2 rates)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="where figures/ and results.json go (default: this folder; with --smoke a temporary one)")
+    return p.parse_args(argv)
+
+
+def output_dir(args: argparse.Namespace, name: str) -> Path:
+    """The --out folder, defaulting to the case folder (full) or a fresh temporary folder (smoke)."""
+    out = args.out if args.out is not None else (
+        Path(tempfile.mkdtemp(prefix=f"porefsi-{name}-smoke-")) if args.smoke else HERE)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def coupled(case) -> dict:
+    """One coupled run: extremes over the run and the end state."""
+    t0 = time.perf_counter()
+    run = CoupledRun(build_problem(case))
+    rows = [r.row for r in run.steps()]
+    u = [r["max_displacement_m"] for r in rows]
+    vm = [r["max_von_mises_Pa"] for r in rows]
+    bt = run.sim.breakthrough_time
+    return {"rate_m3_s": case.drainage.rate, "max_displacement_m": max(u), "max_von_mises_Pa": max(vm),
+            "final_displacement_m": u[-1], "final_von_mises_Pa": vm[-1], "final_sw": rows[-1]["sw"],
+            "final_inlet_pressure_Pa": rows[-1]["inlet_pressure_Pa"],
+            "max_pore_pressure_Pa": max(r["max_pore_pressure_Pa"] for r in rows),
+            "breakthrough_time_s": None if not np.isfinite(bt) else float(bt),
+            "mass_balance_error": max(r["mass_balance_error"] for r in rows),
+            "wall_seconds": time.perf_counter() - t0}
+
+
+def fluid_scan(net, fluids, axis: str, rates, t_end: float) -> list[dict]:
+    """DPN alone at each rate for ``t_end``: inlet pressure at the end and its peak over all events."""
+    out = []
+    for q in rates:
+        sim = DrainageSimulator(net, fluids, rate=float(q), axis=axis)
+        st = sim.advance_to(t_end)
+        h = sim.history()
+        p = h["inlet_pressure_pa"]
+        bt = sim.breakthrough_time
+        out.append({"rate_m3_s": float(q), "final_inlet_pressure_Pa": float(st.inlet_pressure),
+                    "peak_inlet_pressure_Pa": float(np.nanmax(p)) if np.isfinite(p).any() else float("nan"),
+                    "final_sw": float(st.sw), "breakthrough_time_s": None if not np.isfinite(bt) else float(bt),
+                    "mass_balance_error": float(st.mass_balance_error), "n_events": sim.counters["n_events"]})
+    return out
+
+
+def main(argv=None) -> dict:
+    """Sweep the rate, draw the figure, write ``results.json``; return the results."""
+    args = parse_args(argv)
+    base = load_case(HERE / "case.toml")
+    if args.smoke:
+        base = smoke_case(base)
+    out = output_dir(args, "flow_rates")
+    prob = build_problem(base)
+    net, fl, axis = prob.network, prob.fluids, base.image.axis
+    ax_i = "xyz".index(axis)
+    extent = np.asarray(prob.image.extent, float)
+    area = float(np.prod(np.delete(extent, ax_i)))
+    length = float(extent[ax_i])
+    k = absolute_permeability(net, axis).k_m2
+    ip = invasion_percolation(net, fl, axis=axis)
+    pc_bt = float(ip.capillary_pressure[ip.breakthrough_step]) if ip.breakthrough_step >= 0 else float("nan")
+    q_star = pc_bt * k * area / (fl.mu_n * length)
+    pore_volume = float(net.pore_volume.sum())
+
+    scan = fluid_scan(net, fl, axis, SCAN_SMOKE if args.smoke else SCAN_FULL, base.drainage.t_end)
+    plateau = scan[0]["peak_inlet_pressure_Pa"]
+    # Measured change: first scanned rate whose peak inlet pressure exceeds twice the capillary
+    # path value (viscous drop = capillary pressure), interpolated in log-log.
+    q_meas = None
+    for a, b in zip(scan[:-1], scan[1:], strict=False):
+        pa, pb = a["peak_inlet_pressure_Pa"], b["peak_inlet_pressure_Pa"]
+        if pa < 2 * pc_bt <= pb:
+            w = (np.log(2 * pc_bt) - np.log(pa)) / (np.log(pb) - np.log(pa))
+            q_meas = float(np.exp(np.log(a["rate_m3_s"]) + w * (np.log(b["rate_m3_s"]) - np.log(a["rate_m3_s"]))))
+            break
+
+    rows = []
+    for q in (RATES_SMOKE if args.smoke else RATES_FULL):
+        r = coupled(base.replace(drainage={"rate": q}))
+        r["capillary_number"] = fl.capillary_number(q, area)
+        r["injected_pore_volumes"] = q * base.drainage.t_end / pore_volume
+        r["paper_case"] = next((n for n, v in PAPER_CASES.items() if np.isclose(v, q)), None)
+        rows.append(r)
+        print(f"  Q = {q:.3g} m^3/s (Ca {r['capillary_number']:.2g}): max |u| = {r['max_displacement_m']:.4e} m, "
+              f"max vM = {r['max_von_mises_Pa'] / 1e3:.4g} kPa, Sw = {r['final_sw']:.3f} ({r['wall_seconds']:.1f} s)",
+              flush=True)
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    q = np.array([r["rate_m3_s"] for r in rows])
+    fig, ax = plt.subplots(1, 3, figsize=(16, 4.5))
+    for a_, key, fin, lab, sc in ((ax[0], "max_displacement_m", "final_displacement_m", "|u| max, nm", 1e9),
+                                  (ax[1], "max_von_mises_Pa", "final_von_mises_Pa", "von Mises max, kPa", 1e-3)):
+        a_.loglog(q, [r[key] * sc for r in rows], "o-", label="max over the run")
+        a_.loglog(q, [r[fin] * sc for r in rows], "s--", mfc="none", label=f"at t = {base.drainage.t_end:g} s")
+        for r in rows:
+            if r["paper_case"]:
+                a_.annotate(r["paper_case"], (r["rate_m3_s"], r[key] * sc), textcoords="offset points",
+                            xytext=(-4, 6), fontsize=9)
+        a_.axvline(q_star, color="k", ls=":", lw=1, label="Q*: viscous drop = Pc_bt")
+        a_.set_xlabel("injection rate Q, m³/s")
+        a_.set_ylabel(lab)
+        a_.grid(alpha=0.3, which="both")
+        a_.legend(fontsize=8)
+        sec = a_.secondary_xaxis("top", functions=(lambda x: fl.capillary_number(1.0, area) * x,
+                                                   lambda c: c / fl.capillary_number(1.0, area)))
+        sec.set_xlabel("Ca")
+    ax[0].set_title("deformation vs rate (coupled runs)")
+    ax[1].set_title("stress vs rate (coupled runs)")
+    qs = np.array([s["rate_m3_s"] for s in scan])
+    ax[2].loglog(qs, [s["peak_inlet_pressure_Pa"] * 1e-3 for s in scan], "o-", ms=3, label="peak over the run")
+    ax[2].loglog(qs, [s["final_inlet_pressure_Pa"] * 1e-3 for s in scan], "s--", ms=3, mfc="none",
+                 label=f"at t = {base.drainage.t_end:g} s")
+    ax[2].axhline(pc_bt * 1e-3, color="C2", lw=1, label=f"Pc_bt (IP) = {pc_bt / 1e3:.2f} kPa")
+    ax[2].loglog(qs, qs * fl.mu_n * length / (k * area) * 1e-3, "k:", lw=1, label="Q μ_n L / (k A)")
+    ax[2].axvline(q_star, color="k", ls=":", lw=1)
+    ax[2].set_ylim(0.3 * pc_bt * 1e-3, None)
+    ax[2].set_xlabel("injection rate Q, m³/s")
+    ax[2].set_ylabel("inlet pressure, kPa")
+    ax[2].set_title("fluid only: where viscous forces take over")
+    ax[2].grid(alpha=0.3, which="both")
+    tw = ax[2].twinx()
+    tw.semilogx(qs, [s["final_sw"] for s in scan], "-", color="C3", alpha=0.6)
+    tw.set_ylabel(f"Sw at {base.drainage.t_end:g} s", color="C3")
+    tw.set_ylim(0, 1.05)
+    ax[2].legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    fig_path = out / "figures" / "flow_rates.png"
+    fig.savefig(fig_path, dpi=110)
+    plt.close(fig)
+
+    results = {
+        "case": base.name, "smoke": args.smoke,
+        "settings": {"coarsen": base.solid.coarsen, "exchange_dt_s": base.coupling.exchange_dt,
+                     "t_end_s": base.drainage.t_end, "integrator": base.coupling.integrator,
+                     "network_update": base.network.update, "n_test_points": base.interface.n_test_points},
+        "inlet_area_m2": area, "length_m": length, "permeability_m2": k, "pore_volume_m3": pore_volume,
+        "pc_breakthrough_ip_Pa": pc_bt, "capillary_plateau_peak_Pa": plateau,
+        "critical_rate_estimate_m3_s": q_star, "critical_rate_measured_m3_s": q_meas,
+        "critical_capillary_number": fl.capillary_number(q_star, area),
+        "coupled": rows, "fluid_scan": scan, "paper": PAPER, "figures": [str(fig_path.relative_to(out))],
+    }
+    (out / "results.json").write_text(json.dumps(results, indent=1) + "\n", encoding="utf-8")
+    print(f"flow_rates: Q* = {q_star:.3g} m^3/s estimated, {q_meas} measured (Ca* = "
+          f"{results['critical_capillary_number']:.2g}); paper: slightly below 1e-10 -> {out}")
+    return results
+
+
+if __name__ == "__main__":
+    main()
