@@ -149,3 +149,20 @@ def test_digital_radius_midpoint_of_lattice_shells():
     R = np.arange(1, 40)
     r = digital_radius(R * R + 1)
     assert np.all((r > R) & (r < R + 0.5 / R))
+
+
+@SETTINGS
+@given(st.integers(0, 2**32 - 1), st.tuples(*[st.integers(1, 6)] * 3), st.integers(1, 6))
+def test_relabel_equals_fancy_indexing(seed, shape, n):
+    rng = np.random.default_rng(seed)
+    labels = rng.integers(-1, n, shape).astype(np.int32)
+    table = rng.integers(0, 100, n).astype(np.int32)
+    want = np.where(labels >= 0, table[np.maximum(labels, 0)], -1)
+    got = labels.copy()
+    kern._relabel(got, table)
+    np.testing.assert_array_equal(got, want)
+
+
+def test_isqrt_is_the_integer_square_root():
+    for x in list(range(2000)) + [2**31 - 1, 10**12, 10**12 - 1]:
+        assert kern._isqrt(x) == math.isqrt(x)

@@ -1,6 +1,6 @@
 """Maximal-ball pore-network extraction from a segmented image (after Dong & Blunt 2009).
 
-Pipeline (each stage a numba kernel in :mod:`porefsi.network._kernels`):
+Pipeline (each stage a numba kernel gathered in :mod:`porefsi.network._kernels`):
 
 1. squared Euclidean distance map of the pore space (uint16, int32 if a radius reaches 256
    voxels; separable lower-envelope EDT);

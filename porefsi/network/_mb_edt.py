@@ -1,0 +1,110 @@
+"""Squared Euclidean distance transform kernel of the maximal-ball extraction (private).
+
+Twin: ``tests/reference/extract_ref.py::sq_edt``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from porefsi._numba import jit
+
+#: "No solid anywhere on this line" in an int32 squared distance map.
+INF = np.int32(np.iinfo(np.int32).max)
+#: Cap of a uint16 squared distance map (radii up to 255 voxels are exact below it).
+CAP16 = np.uint16(np.iinfo(np.uint16).max)
+
+
+# --------------------------------------------------------------------------------------------
+# Squared Euclidean distance transform (Felzenszwalb & Huttenlocher 2012, separable)
+# --------------------------------------------------------------------------------------------
+@jit
+def _envelope_line(f, n, d, v, z, inf):
+    """Lower envelope of parabolas ``f[p] + (q - p)^2`` on one line; ``d[q]`` its minimum over p.
+
+    ``f`` entries ``>= inf`` are skipped (no solid voxel within reach on that line); results are
+    capped at ``inf``.
+    """
+    k = -1
+    for q in range(n):
+        fq = f[q]
+        if fq >= inf:
+            continue
+        s = 0.0
+        while k >= 0:
+            p = v[k]
+            s = ((fq + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
+            if s <= z[k]:
+                k -= 1
+            else:
+                break
+        if k < 0:
+            k = 0
+            v[0] = q
+            z[0] = -np.inf
+            z[1] = np.inf
+        else:
+            k += 1
+            v[k] = q
+            z[k] = s
+            z[k + 1] = np.inf
+    if k < 0:
+        for q in range(n):
+            d[q] = inf
+        return
+    k = 0
+    for q in range(n):
+        while z[k + 1] < q:
+            k += 1
+        p = v[k]
+        val = (q - p) * (q - p) + f[p]
+        d[q] = val if val < inf else inf
+
+
+@jit
+def _sq_edt(pore, out, cap):
+    """Squared distance (voxel units) from each pore voxel to the nearest solid voxel centre.
+
+    Solid voxels get 0. Outside the image is *not* solid. Values are ``min(d^2, cap)``: exact
+    wherever the true value is below ``cap`` (a capped intermediate only ever feeds candidates
+    that are themselves ``>= cap``), ``cap`` where no solid voxel is nearer.
+
+    Parameters
+    ----------
+    pore : ndarray of uint8, shape (nx, ny, nz)
+        1 = pore.
+    out : ndarray of int32 or uint16, shape (nx, ny, nz)
+        Written in place.
+    cap : int
+        The largest value ``out`` can hold (:data:`INF` for int32, :data:`CAP16` for uint16).
+    """
+    nx, ny, nz = pore.shape
+    m = max(nx, ny, nz)
+    f = np.empty(m, np.int64)
+    d = np.empty(m, np.int64)
+    v = np.empty(m, np.int64)
+    z = np.empty(m + 1, np.float64)
+    inf = np.int64(cap)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                f[k] = inf if pore[i, j, k] else 0
+            _envelope_line(f, nz, d, v, z, inf)
+            for k in range(nz):
+                out[i, j, k] = d[k]
+    for i in range(nx):
+        for k in range(nz):
+            for j in range(ny):
+                f[j] = out[i, j, k]
+            _envelope_line(f, ny, d, v, z, inf)
+            for j in range(ny):
+                out[i, j, k] = d[j]
+    # last axis: gather a slab of lines at a time would be more cache friendly; the strided
+    # gather costs ~20 % of the EDT on 400^3 and keeps the memory at one line.
+    for j in range(ny):
+        for k in range(nz):
+            for i in range(nx):
+                f[i] = out[i, j, k]
+            _envelope_line(f, nx, d, v, z, inf)
+            for i in range(nx):
+                out[i, j, k] = d[i]

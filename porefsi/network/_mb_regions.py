@@ -1,0 +1,244 @@
+"""Voxel regions of the pores and their interfaces (private kernels of the extraction).
+
+Twins: ``tests/reference/extract_ref.py::flood``, ``::interfaces``, ``::pore_stats``; ``_relabel``
+is checked against numpy fancy indexing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import types
+from numba.typed import Dict
+
+from porefsi._numba import jit
+
+
+@jit
+def _relabel(labels, table):
+    """``labels[v] = table[labels[v]]`` where ``labels[v] >= 0``, in place."""
+    flat = labels.reshape(-1)
+    for n in range(flat.size):
+        o = flat[n]
+        if o >= 0:
+            flat[n] = table[o]
+
+
+# --------------------------------------------------------------------------------------------
+# Voxel labels: seeded priority flood on the distance map (marker watershed)
+# --------------------------------------------------------------------------------------------
+@jit
+def _flood(dt2, labels, buf, queue):
+    """Grow the seed labels over the pore space, highest distance-map values first.
+
+    Level by level from the largest ``dt2`` down: the unlabelled voxels of the level that touch
+    a labelled face neighbour (C order; label of the first labelled neighbour in the order -x,
+    +x, -y, +y, -z, +z) start a first-in first-out growth into every unlabelled pore voxel
+    with ``dt2 >=`` the level. So a region only ever grows through voxels at least as wide as
+    the level being flooded, two floods meet at the narrowest section between them (the
+    saddle of the distance map; on a plateau, half-way), and every region stays 6-connected.
+    Pore voxels not connected to a seed stay -1.
+
+    Parameters
+    ----------
+    dt2 : ndarray of uint16 or int32, shape (nx, ny, nz)
+        0 on solid.
+    labels : ndarray of int32, shape (nx, ny, nz)
+        Seeds ``>= 0``, -1 elsewhere; grown in place.
+    buf, queue : ndarray of int32 or int64, shape (>= number of unlabelled pore voxels,)
+        Work space (voxel indices sorted by level; the growth queue).
+
+    Returns
+    -------
+    int
+        Voxels labelled.
+    """
+    nx, ny, nz = dt2.shape
+    nyz = ny * nz
+    df = dt2.reshape(-1)
+    lf = labels.reshape(-1)
+    top = 0
+    for n in range(df.size):
+        if lf[n] < 0 and df[n] > top:
+            top = df[n]
+    count = np.zeros(top + 2, np.int64)
+    for n in range(df.size):
+        if lf[n] < 0 and df[n] > 0:
+            count[top - df[n]] += 1
+    start = np.zeros(top + 2, np.int64)
+    for t in range(1, top + 2):
+        start[t] = start[t - 1] + count[t - 1]
+    fill = start.copy()
+    for n in range(df.size):
+        if lf[n] < 0 and df[n] > 0:
+            key = top - df[n]
+            buf[fill[key]] = n
+            fill[key] += 1
+    offs = np.array([-nyz, nyz, -nz, nz, -1, 1], np.int64)
+    done = 0
+    for key in range(top):
+        level = top - key
+        tail = 0
+        for s in range(start[key], start[key + 1]):
+            n = np.int64(buf[s])
+            if lf[n] != -1:
+                continue
+            i = n // nyz
+            j = (n // nz) % ny
+            k = n % nz
+            for t in range(6):
+                if (t == 0 and i == 0) or (t == 1 and i == nx - 1) or (t == 2 and j == 0):
+                    continue
+                if (t == 3 and j == ny - 1) or (t == 4 and k == 0) or (t == 5 and k == nz - 1):
+                    continue
+                lab = lf[n + offs[t]]
+                if lab >= 0:
+                    lf[n] = -2 - lab  # pending: invisible to the rest of this scan
+                    queue[tail] = n
+                    tail += 1
+                    break
+        for h in range(tail):
+            n = np.int64(queue[h])
+            lf[n] = -2 - lf[n]
+        head = 0
+        while head < tail:
+            n = np.int64(queue[head])
+            head += 1
+            i = n // nyz
+            j = (n // nz) % ny
+            k = n % nz
+            lab = lf[n]
+            for t in range(6):
+                if (t == 0 and i == 0) or (t == 1 and i == nx - 1) or (t == 2 and j == 0):
+                    continue
+                if (t == 3 and j == ny - 1) or (t == 4 and k == 0) or (t == 5 and k == nz - 1):
+                    continue
+                m = n + offs[t]
+                if lf[m] == -1 and df[m] >= level:
+                    lf[m] = lab
+                    queue[tail] = m
+                    tail += 1
+        done += tail
+    return done
+
+
+# --------------------------------------------------------------------------------------------
+# Throats: interfaces between pore labels
+# --------------------------------------------------------------------------------------------
+@jit
+def _interfaces(labels, dt2, n_pores):
+    """Aggregate the voxel faces shared by two different pore labels into throats.
+
+    For each pair ``(a < b)`` of touching labels: the number of shared faces, the largest
+    ``w = min(dt2[u], dt2[v])`` over its faces ``(u, v)`` (squared inscribed radius on the
+    interface) and the centre of the first face that attains it (voxel-index coordinates, a
+    face between voxels ``i`` and ``i + 1`` sits at ``i + 0.5``). Throats are numbered in the
+    order their first face is met in a C-order scan (x, then y, then z faces per voxel).
+
+    Returns
+    -------
+    conns : ndarray of int64, shape (Nt, 2)
+    w : ndarray of int64, shape (Nt,)
+    point : ndarray of float64, shape (Nt, 3)
+    n_faces : ndarray of int64, shape (Nt,)
+    """
+    nx, ny, nz = labels.shape
+    table = Dict.empty(key_type=types.int64, value_type=types.int64)
+    cap = 256
+    conns = np.empty((cap, 2), np.int64)
+    w = np.empty(cap, np.int64)
+    point = np.empty((cap, 3), np.float64)
+    nf = np.empty(cap, np.int64)
+    nt = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                la = labels[i, j, k]
+                if la < 0:
+                    continue
+                for ax in range(3):
+                    a, b, c = i, j, k
+                    if ax == 0:
+                        a += 1
+                        if a >= nx:
+                            continue
+                    elif ax == 1:
+                        b += 1
+                        if b >= ny:
+                            continue
+                    else:
+                        c += 1
+                        if c >= nz:
+                            continue
+                    lb = labels[a, b, c]
+                    if lb < 0 or lb == la:
+                        continue
+                    lo = min(la, lb)
+                    hi = max(la, lb)
+                    key = np.int64(lo) * n_pores + hi
+                    val = min(dt2[i, j, k], dt2[a, b, c])
+                    if key in table:
+                        t = table[key]
+                    else:
+                        if nt == cap:
+                            cap *= 2
+                            c2 = np.empty((cap, 2), np.int64)
+                            c2[:nt] = conns[:nt]
+                            conns = c2
+                            w2 = np.empty(cap, np.int64)
+                            w2[:nt] = w[:nt]
+                            w = w2
+                            p2 = np.empty((cap, 3), np.float64)
+                            p2[:nt] = point[:nt]
+                            point = p2
+                            n2 = np.empty(cap, np.int64)
+                            n2[:nt] = nf[:nt]
+                            nf = n2
+                        t = np.int64(nt)
+                        nt += 1
+                        table[key] = t
+                        conns[t, 0] = lo
+                        conns[t, 1] = hi
+                        w[t] = -1
+                        nf[t] = 0
+                    nf[t] += 1
+                    if val > w[t]:
+                        w[t] = val
+                        point[t, 0] = i + 0.5 * (a - i)
+                        point[t, 1] = j + 0.5 * (b - j)
+                        point[t, 2] = k + 0.5 * (c - k)
+    return conns[:nt].copy(), w[:nt].copy(), point[:nt].copy(), nf[:nt].copy()
+
+
+@jit
+def _pore_stats(labels, n_pores):
+    """Voxel count of each pore region and whether it touches each box face.
+
+    Returns
+    -------
+    count : ndarray of int64, shape (Np,)
+    faces : ndarray of bool, shape (Np, 6)
+        Columns xmin, xmax, ymin, ymax, zmin, zmax.
+    """
+    nx, ny, nz = labels.shape
+    count = np.zeros(n_pores, np.int64)
+    faces = np.zeros((n_pores, 6), np.bool_)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                p = labels[i, j, k]
+                if p < 0:
+                    continue
+                count[p] += 1
+                if i == 0:
+                    faces[p, 0] = True
+                if i == nx - 1:
+                    faces[p, 1] = True
+                if j == 0:
+                    faces[p, 2] = True
+                if j == ny - 1:
+                    faces[p, 3] = True
+                if k == 0:
+                    faces[p, 4] = True
+                if k == nz - 1:
+                    faces[p, 5] = True
+    return count, faces
