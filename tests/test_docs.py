@@ -87,6 +87,22 @@ def test_every_page_is_reachable_from_the_index():
     assert names - {"index"} <= reached, f"pages in no toctree: {sorted(names - {'index'} - reached)}"
 
 
+def toml_blocks(text: str) -> list[str]:
+    """Bodies of the fenced ```toml blocks of ``text``."""
+    return re.findall(r"^```toml\n(.*?)^```", text, re.M | re.S)
+
+
+@pytest.mark.parametrize("page", PAGES, ids=[p.name for p in PAGES])
+def test_case_file_examples_are_valid_cases(page):
+    """Every TOML block in the docs is a valid case file: no unknown key, no out-of-range value."""
+    import tomllib
+
+    from porefsi.case.config import case_from_dict
+
+    for block in toml_blocks(page.read_text(encoding="utf-8")):
+        case_from_dict(tomllib.loads(block), where=page.name)
+
+
 @pytest.mark.parametrize("name", DOCTEST_PAGES)
 def test_page_examples_run(name, monkeypatch):
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "1")
