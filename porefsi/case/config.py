@@ -89,6 +89,10 @@ class SolidConfig:
     E: float = _f(20.0e9, "Young's modulus (paper: 20 GPa)", lo=0.0, lo_open=True, unit="Pa")
     nu: float = _f(0.28, "Poisson's ratio (paper: 0.28)", lo=-0.999, hi=0.4999)
     density: float = _f(2650.0, "grain density (quartz sandstone)", lo=0.0, lo_open=True, unit="kg/m^3")
+    linear_solver: str = _f("direct", "solid linear solves: direct = sparse LU factorised once and reused while the "
+                            "tangent holds (fastest to ~1e5 dofs); amg = CG + smoothed aggregation (large meshes); "
+                            "jacobi = Jacobi-CG; auto = direct below 3000 dofs, else amg",
+                            choices=("direct", "amg", "jacobi", "auto"))
     load_axis: str = _f("z", "axis of the mechanical load (fixed low face, moving high face)",
                         choices=("x", "y", "z"))
     strain_rate: float = _f(0.0, "compressive strain rate on the high face (paper section 3.3)", lo=0.0,

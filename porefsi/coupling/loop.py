@@ -117,6 +117,7 @@ class CoupledRun:
         self.u = np.zeros(self.model.n_dofs)
         self.v = np.zeros(self.model.n_dofs)
         self._stepper = None
+        self._static_lu = None
         self.seconds = dict.fromkeys(("fluid", "interface", "solid", "update", "stress", "permeability"), 0.0)
         self.precoupling_history: list[float] = []
 
@@ -138,13 +139,41 @@ class CoupledRun:
         """One solid step; ``forces`` maps each of :meth:`load_times` to nodal forces (Nn, 3)."""
         cc = self.problem.case.coupling
         if cc.integrator == "static":
-            model = self.model.with_nodal_forces(forces[t0 + dt])
-            u1, _ = solve_static(model, t0 + dt, u0=u)
+            u1 = self._static_solve(self.model.with_nodal_forces(forces[t0 + dt]), t0 + dt, u)
             return u1, (u1 - u) / dt
         st = self._stepper_for(dt)
         loads = tuple(self.model.with_nodal_forces(forces[s]).external_force(s) for s in st.load_times(t0))
         u1, v1, _ = st.step(u, v, t0, loads=loads)
         return u1, v1
+
+    def _static_solve(self, model, t: float, u0: np.ndarray, rtol: float = 1e-8, max_iter: int = 30) -> np.ndarray:
+        """Quasi-static equilibrium at ``t`` by modified Newton.
+
+        The tangent is factorised once and reused across exchange steps (pore-pressure strains are
+        ~1e-7, so it barely changes); it is refreshed when the iteration stops contracting, and a
+        full Newton solve is the fallback.
+        """
+        u = np.array(u0, dtype=float)
+        fext = model.external_force(t)
+        scale = max(float(np.linalg.norm(fext)), float(np.linalg.norm(model.internal_force(np.zeros_like(u), t))),
+                    1e-300)
+        for refresh in (False, True):
+            if self._static_lu is None or refresh:
+                self._static_lu = self.model.make_solver(model.tangent(u, t))
+            x = u.copy()
+            prev = np.inf
+            for _ in range(max_iter):
+                r = model.internal_force(x, t) - fext
+                nr = float(np.linalg.norm(r))
+                if nr <= rtol * scale:
+                    return x
+                if nr > 0.5 * prev:  # not contracting: the stored tangent is stale
+                    break
+                prev = nr
+                x = x - self._static_lu(r)
+        u1, _ = solve_static(model, t, u0=u, rtol=rtol)
+        self._static_lu = None
+        return u1
 
     # ---- network ------------------------------------------------------------------------
     def _update_network(self, U: np.ndarray):

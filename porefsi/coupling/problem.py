@@ -138,7 +138,7 @@ def build_problem(case: Case) -> CoupledProblem:
     ax = axis_index(sc.load_axis)
     length = img.extent[ax]
     bcs = uniaxial_bcs(ax, rate=-sc.strain_rate * length)
-    model = SolidModel(mres.mesh, material, bcs, order=sc.order)
+    model = SolidModel(mres.mesh, material, bcs, order=sc.order, linear_solver=sc.linear_solver)
     secs["mesh"] = time.perf_counter() - t
 
     t = time.perf_counter()
