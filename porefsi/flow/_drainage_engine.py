@@ -314,5 +314,15 @@ class Engine:
 
     def ensure_pressure(self):
         """Solve for the pressure if a skipped solve left it stale (no configuration change)."""
-        if not self.p_valid:
-            self.solve()
+        if self.p_valid:
+            return
+        if self.rate is not None and not self.has_open_path():
+            # every meniscus pinned: fluids at rest, non-wetting at the next jump's threshold
+            _, thr = self._cheapest()
+            n = self.g.n
+            P = np.where(self.trapped, self.P[:n], 0.0)
+            P[self.full] = thr
+            self.P = np.concatenate([P, [thr]])
+            self.p_valid = True
+            return
+        self.solve()

@@ -253,6 +253,85 @@ class DrainageSimulator:
         new._engine = e
         return new
 
+    def remap(self, net: Network, nw_saturation, invasion_time=None, full_tol: float = 1e-9) -> DrainageSimulator:
+        """Carry the state onto a network of a *different* topology, given its pore saturations.
+
+        The coupling re-extracts the network from the deformed image; the caller computes each new
+        pore's non-wetting saturation by volume-weighted voxel overlap of the old and new label
+        images. This builds a consistent engine state from those saturations (full pores, the
+        non-wetting cluster connected to the inlet, filling pores attached to it, invaded throats,
+        trapped wetting clusters, the invasion tree) and keeps time, injected and outflow volumes,
+        breakthrough and counters. The change of stored non-wetting volume is booked as
+        ``deformation_volume``, so the mass balance stays exact. See ``docs/drainage.md`` ("Remap")
+        for the construction and what is approximate.
+
+        Parameters
+        ----------
+        net : Network
+            The new network (any topology; pores not spanning the axis are dropped).
+        nw_saturation : array_like of float, shape (net.n_pores,)
+            Non-wetting saturation of each new pore, in [0, 1] (values within 1e-9 outside are clipped).
+        invasion_time : array_like of float, shape (net.n_pores,), optional
+            Time each new pore became full, s (e.g. the earliest overlapping old pore's); full pores
+            without one get the current time.
+        full_tol : float
+            Saturations ``>= 1 - full_tol`` count as full.
+
+        Returns
+        -------
+        DrainageSimulator
+            A new simulator (this one is unchanged); ``last_remap`` holds the counts of full,
+            filling and stranded pores and the stranded non-wetting volume (m³) that was removed.
+
+        Raises
+        ------
+        InputError
+            Wrong shape, non-finite or out-of-range saturations.
+        NetworkError
+            ``net`` has no spanning path along the axis.
+        """
+        from porefsi.flow._drainage_remap import engine_arrays_from_saturation
+
+        if not isinstance(net, Network):
+            raise InputError(f"net must be a porefsi Network, got {type(net).__name__}")
+        sat = np.asarray(nw_saturation, dtype=float)
+        if sat.shape != (net.n_pores,):
+            raise InputError(f"nw_saturation needs shape ({net.n_pores},) (one value per pore of the new "
+                             f"network), got {sat.shape}")
+        if not np.all(np.isfinite(sat)) or sat.min(initial=0.0) < -1e-9 or sat.max(initial=0.0) > 1 + 1e-9:
+            raise InputError("nw_saturation must be finite and within [0, 1], got range "
+                             f"[{np.min(sat):.6g}, {np.max(sat):.6g}]; compute it as overlap volume / pore volume")
+        sat = np.clip(sat, 0.0, 1.0)
+        e0 = self._engine
+        new = DrainageSimulator.__new__(DrainageSimulator)
+        new.net, new.fluids, new.axis = net, self.fluids, self.axis
+        new.rate, new.inlet_pressure_bc, new._opts = self.rate, self.inlet_pressure_bc, self._opts
+        new.graph = g = build_graph(net, self.fluids, self.axis)
+        e = Engine(g, self.rate, self.inlet_pressure_bc, **self._opts)
+        arr = engine_arrays_from_saturation(g, sat[g.keep], full_tol=full_tol)
+        for name in ("vn", "full", "trapped", "inv", "parent", "tree_res"):
+            setattr(e, name, arr[name])
+        for name in ("t", "injected", "out_n", "out_w", "t_breakthrough", "sw_breakthrough", "n_events",
+                     "n_fills", "n_jumps", "n_skipped", "n_changes", "max_iter_seen", "rows"):
+            v = getattr(e0, name)
+            setattr(e, name, list(v) if isinstance(v, list) else v)
+        e.solver.n_solves = e0.solver.n_solves
+        ft = np.full(net.n_pores, e.t) if invasion_time is None else np.asarray(invasion_time, dtype=float)
+        if ft.shape != (net.n_pores,):
+            raise InputError(f"invasion_time needs shape ({net.n_pores},), got {ft.shape}")
+        ft = ft[g.keep]
+        e.fill_time = np.where(e.full, np.where(np.isfinite(ft), np.minimum(ft, e.t), e.t), np.nan)
+        e.edge_time = np.where(e.inv, e.t, np.nan)
+        if np.isnan(e.t_breakthrough) and (e.full & g.is_outlet).any():
+            e.t_breakthrough, e.sw_breakthrough = e.t, e.sw()
+        e.deformation = e0.deformation + float(e.vn.sum() - e0.vn.sum())
+        e.P = np.zeros(g.n + 1)
+        e.p_valid = False
+        e.flux_valid = False
+        new._engine = e
+        new.last_remap = {k: arr[k] for k in ("n_full", "n_filling", "n_stranded", "stranded_volume")}
+        return new
+
     def history(self) -> dict:
         """Time series so far, one row per event: dict of arrays keyed by :data:`HISTORY_COLUMNS`."""
         rows = np.asarray(self._engine.rows, dtype=float).reshape(-1, len(HISTORY_COLUMNS))
