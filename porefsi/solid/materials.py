@@ -76,7 +76,12 @@ class Material:
     def cauchy(self, F: np.ndarray) -> np.ndarray:
         """Cauchy stress sigma = P F^T / J, Pa, shape (3, 3, ...)."""
         J = _det(F)
-        return np.einsum("iJ...,kJ...->ik...", self.first_pk(F), F) / J
+        P = self.first_pk(F)
+        sigma = np.empty_like(P)
+        for i in range(3):
+            for k in range(3):
+                sigma[i, k] = (P[i, 0] * F[k, 0] + P[i, 1] * F[k, 1] + P[i, 2] * F[k, 2]) / J
+        return sigma
 
 
 def _det(F):

@@ -33,9 +33,10 @@ def element_cauchy(model, u: np.ndarray, t: float) -> np.ndarray:
     if feb.order == 1:
         from porefsi.solid.assembly import p1_gradients
 
-        dN, _ = p1_gradients(model.mesh)
+        p1 = getattr(model, "_p1", None)  # the fast path's assembler keeps the gradients
+        dN = p1.dN if p1 is not None else p1_gradients(model.mesh)[0]
         ue = full.reshape(-1, 3)[model.mesh.tets]  # (Ne, 4, 3)
-        F = np.eye(3)[None] + np.einsum("eai,eaJ->eiJ", ue, dN)
+        F = np.eye(3)[None] + np.matmul(ue.transpose(0, 2, 1), dN)  # F_iJ = delta_iJ + sum_a u_ai dN_aJ
         F = np.moveaxis(F, 0, -1)  # (3, 3, Ne)
     else:
         centroid = (np.full((3, 1), 0.25), np.array([1.0 / 6.0]))
