@@ -140,3 +140,17 @@ def test_lowrank_solver_gives_the_direct_drainage(rng, max_rank):
     assert 1 < c["n_solver_setups"] < c["n_solves"]
     assert c["n_events"] == ref.counters["n_events"] and c["n_solves"] == ref.counters["n_solves"]
     np.testing.assert_allclose(sim.invasion_time(), ref.invasion_time(), rtol=1e-10)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("shape", [(16, 16, 1), (8, 7, 6)])
+def test_full_invariant_sweep_over_ca_and_m(shape):
+    # the stability sweep: Ca 1e-9..1e-2 x M 1e-3..1e3 on a 2-D-like and a 3-D lattice; every
+    # event keeps saturations in [0, 1], dt >= 0, monotone filling, mass error <= 1e-12, and the
+    # active-set work per event stays bounded (no stalls)
+    net = lattice_network(shape, SPACING, np.random.default_rng(11))
+    for ca in np.logspace(-9, -2, 8):
+        for m in np.logspace(-3, 3, 7):
+            fl = Fluids(mu_w=1e-3, mu_n=1e-3 * m)
+            sim = _run_checked(net, fl, _rate_for_ca(net, fl, ca), max_events=20 * net.n_pores)
+            assert sim.counters["max_active_set_iterations"] <= 2 * sim.graph.n_edges
