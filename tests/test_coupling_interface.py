@@ -162,3 +162,25 @@ def test_traction_bad_input():
         traction_interface(p, t, cav, np.zeros(len(cav) + 1, int), 1)
     with pytest.raises(InputError, match="pores"):
         traction_interface(p, t, cav, np.full(len(cav), 5), 2)
+
+
+def test_hull_with_throat_forces_balances_and_pushes_radially(rng):
+    """The throat-wall switch: each cylinder hands P_t 2 pi r L to nodes, normal to its axis,
+    half booked to each end pore; the load balance stays exact."""
+    x = _grid(31)
+    c = np.array([[0.3, 0.5, 0.5], [0.7, 0.5, 0.5]])
+    r = np.array([0.08, 0.08])
+    ends = np.array([[[0.38, 0.5, 0.5], [0.62, 0.5, 0.5]]])
+    itf = hull_interface(c, r, x, n_test_points=400, tolerance=0.04, rng=np.random.default_rng(0),
+                         throats=(np.array([[0, 1]]), np.array([0.05]), ends))
+    a_t = 2 * np.pi * 0.05 * 0.24
+    np.testing.assert_allclose(itf.wall_area, 4 * np.pi * r**2 + a_t / 2, rtol=1e-12)
+    p = np.array([2.0e4, 1.0e4])
+    assert itf.load_balance_error(p) < 1e-12
+    plain = hull_interface(c, r, x, n_test_points=400, tolerance=0.04, rng=np.random.default_rng(0))
+    # Same seed: the sphere test points come first, so the difference is the throat's load alone.
+    extra = itf.nodal_forces(p) - plain.nodal_forces(p)
+    assert np.abs(extra[:, 0]).max() < 1e-12 * np.abs(extra).max()  # normal to the x-axis throat
+    np.testing.assert_allclose(np.linalg.norm(extra, axis=1).sum(), p.mean() * a_t, rtol=1e-12)
+    with pytest.raises(InputError):
+        hull_interface(c, r, x, n_test_points=2, rng=rng, throats=(np.array([[0, 1]]), [0.05], ends))

@@ -110,6 +110,7 @@ class InterfaceConfig:
     tolerance: float | None = _f(None, "range of inclusivity ε (eq. 3.2); default 0.5 x pore radius",
                                  lo=0.0, unit="m", optional=True)
     seed: int = _f(0, "seed of the test-point generator", lo=0)
+    throat_forces: bool = _f(False, "hull only: also load the throat walls (the paper neglects them, section 3.2)")
 
 
 @dataclasses.dataclass(frozen=True)

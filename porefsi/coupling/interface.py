@@ -56,6 +56,9 @@ class Interface:
         :meth:`load_balance_error`).
     seconds : float
         Build time, s.
+    handed_area : ndarray, shape (Np,)
+        ``hull``: per pore, the force magnitude per unit pressure the operator hands to nodes, m²
+        (equal to ``wall_area`` for every loaded pore); ``traction``: the facet area.
     """
 
     operator: sp.csr_matrix
@@ -64,6 +67,11 @@ class Interface:
     pore_nodes: tuple
     n_unloaded: int
     seconds: float
+    handed_area: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.handed_area is None:
+            object.__setattr__(self, "handed_area", np.asarray(self.wall_area, float).copy())
 
     @property
     def n_nodes(self) -> int:
@@ -97,15 +105,6 @@ class Interface:
         if self.method == "hull":
             return abs(float(np.sum(np.abs(p) * self.handed_area)) - ref) / ref
         return float(np.linalg.norm(f.sum(axis=0))) / ref
-
-    @property
-    def handed_area(self) -> np.ndarray:
-        """Per pore, the sum over its nodes of the force magnitude per unit pressure, m², (Np,)."""
-        coo = self.operator.tocoo()
-        node_pore = (coo.row // 3) * self.n_pores + coo.col
-        key, inv = np.unique(node_pore, return_inverse=True)
-        mag = np.sqrt(np.bincount(inv, weights=coo.data**2))
-        return np.bincount(key % self.n_pores, weights=mag, minlength=self.n_pores)
 
 
 def sphere_test_points(n: int, rng: np.random.Generator) -> np.ndarray:
@@ -197,6 +196,7 @@ def hull_interface(
     tolerance=None,
     rng: np.random.Generator | None = None,
     candidates=None,
+    throats=None,
 ) -> Interface:
     """The paper's convex-hull interface (section 2.3.1, eqs. 2.25-2.26, 3.2).
 
@@ -222,6 +222,12 @@ def hull_interface(
         the centres, so the operator does not depend on pore numbering.
     candidates : ndarray of bool (Nn,), optional
         Nodes allowed to receive load (e.g. pore-wall surface nodes); default all.
+    throats : tuple (conns (Nt, 2), radius (Nt,), ends (Nt, 2, 3)), optional
+        Also load the throat walls (the paper neglects them, section 3.2): each throat cylinder
+        from ``ends[t, 0]`` to ``ends[t, 1]`` carries the mean pressure of its two pores on its
+        lateral area ``2 pi r L``, with test points uniform on that surface, its own enlarged hull
+        (tolerance: the mean of its pores') and forces along the normal from the axis to the node;
+        half of it is booked to each pore's column.
 
     Returns
     -------
@@ -243,6 +249,8 @@ def hull_interface(
         raise InputError(f"tolerance (range of inclusivity) must be >= 0 m, got {tolerance!r}")
     rng = np.random.default_rng() if rng is None else rng
     n = int(n_test_points)
+    if n < 4:
+        raise InputError(f"need at least 4 test points per pore for a 3-D hull, got {n_test_points}")
     unit = sphere_test_points(n * n_p, rng).reshape(n_p, n, 3) if n_p else np.zeros((0, n, 3))
     unit = unit[_pore_rank(c)] if n_p else unit
     tp = (c[:, None, :] + r[:, None, None] * unit).reshape(-1, 3)
@@ -253,28 +261,77 @@ def hull_interface(
     near = _kernels._nearest_member(tp, tptr, mptr, members, x)
     area = 4.0 * np.pi * r**2
     rows, cols, vals = [], [], []
-    pore_nodes = []
-    n_unloaded = 0
-    for i in range(n_p):
-        hits = near[tptr[i]:tptr[i + 1]]
+    handed = np.zeros(n_p)
+    loaded = _lump(x, members, near, tptr, c, None, area, n, (np.arange(n_p)[:, None], np.ones((n_p, 1))),
+                   rows, cols, vals, handed)
+    pore_nodes = [members[np.unique(near[tptr[i]:tptr[i + 1]][near[tptr[i]:tptr[i + 1]] >= 0])]
+                  for i in range(n_p)]
+    n_unloaded = int(np.sum(~loaded))
+    wall = area.copy()
+    if throats is not None:
+        conns, rt, ends = (np.asarray(v) for v in throats)
+        ends = np.asarray(ends, float).reshape(-1, 2, 3)
+        rt = np.asarray(rt, float)
+        axis = ends[:, 1] - ends[:, 0]
+        length = np.linalg.norm(axis, axis=1)
+        ok = length > 0
+        conns, rt, ends, axis, length = conns[ok], rt[ok], ends[ok], axis[ok], length[ok]
+        n_t = len(conns)
+        if n_t:
+            ax_u = axis / length[:, None]
+            # uniform on the lateral surface: uniform height, uniform angle
+            h = rng.random((n_t, n))
+            phi = 2 * np.pi * rng.random((n_t, n))
+            e1 = np.cross(ax_u, np.where(np.abs(ax_u[:, [0]]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+            e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+            e2 = np.cross(ax_u, e1)
+            ring = np.cos(phi)[..., None] * e1[:, None] + np.sin(phi)[..., None] * e2[:, None]
+            ttp = (ends[:, 0, None] + h[..., None] * axis[:, None] + rt[:, None, None] * ring).reshape(-1, 3)
+            tptr_t = np.arange(n_t + 1, dtype=np.int64) * n
+            mid = ends.mean(axis=1)
+            eps_t = 0.5 * (eps[conns[:, 0]] + eps[conns[:, 1]])
+            mp, ml = hull_members(x[cand], mid, np.maximum(rt, 0.5 * length), ttp, tptr_t, eps_t)
+            mem_t = cand[ml]
+            near_t = _kernels._nearest_member(ttp, tptr_t, mp, mem_t, x)
+            area_t = 2 * np.pi * rt * length
+            share = (np.asarray(conns, np.int64), np.full((n_t, 2), 0.5))
+            _lump(x, mem_t, near_t, tptr_t, ends[:, 0], ax_u, area_t, n, share, rows, cols, vals, handed)
+            np.add.at(wall, conns[:, 0], 0.5 * area_t)
+            np.add.at(wall, conns[:, 1], 0.5 * area_t)
+    T = _assemble(rows, cols, vals, (3 * x.shape[0], n_p))
+    return Interface(T, "hull", wall, tuple(pore_nodes), n_unloaded, time.perf_counter() - t0, handed)
+
+
+def _lump(x, members, near, tptr, origin, axis, area, n, share, rows, cols, vals, handed) -> np.ndarray:
+    """Hand each source's test-point areas to its nearest member nodes (appends COO triplets).
+
+    Source s (a pore sphere when ``axis`` is None, else a throat cylinder with unit ``axis[s]``
+    through ``origin[s]``) pushes along the normal from its centre (or axis) to the node; its
+    load enters pore columns ``share[0][s]`` with weights ``share[1][s]``. Returns which sources
+    reached a node.
+    """
+    loaded = np.zeros(len(tptr) - 1, bool)
+    for s in range(len(tptr) - 1):
+        hits = near[tptr[s]:tptr[s + 1]]
         hits = hits[hits >= 0]
         if hits.size == 0:
-            n_unloaded += 1
-            pore_nodes.append(np.zeros(0, np.int64))
             continue
+        loaded[s] = True
         m, cnt = np.unique(hits, return_counts=True)
         nodes = members[m]
-        d = x[nodes] - c[i]
+        d = x[nodes] - origin[s]
+        if axis is not None:
+            d = d - np.outer(d @ axis[s], axis[s])
         dn = np.linalg.norm(d, axis=1)
         unitd = np.where(dn[:, None] > 0, d / np.where(dn > 0, dn, 1.0)[:, None], 0.0)
-        w = area[i] * cnt / n
-        for k in range(3):
-            rows.append(3 * nodes + k)
-            cols.append(np.full(nodes.size, i))
-            vals.append(w * unitd[:, k])
-        pore_nodes.append(nodes)
-    T = _assemble(rows, cols, vals, (3 * x.shape[0], n_p))
-    return Interface(T, "hull", area, tuple(pore_nodes), n_unloaded, time.perf_counter() - t0)
+        w = area[s] * cnt / n
+        for i, wi in zip(share[0][s], share[1][s], strict=True):
+            handed[i] += wi * area[s]
+            for k in range(3):
+                rows.append(3 * nodes + k)
+                cols.append(np.full(nodes.size, i))
+                vals.append(wi * w * unitd[:, k])
+    return loaded
 
 
 def _assemble(rows, cols, vals, shape) -> sp.csr_matrix:

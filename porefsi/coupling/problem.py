@@ -28,7 +28,8 @@ from porefsi.solid.materials import make_material
 from porefsi.solid.mesh import MeshResult, SolidMesh, mesh_solid
 from porefsi.solid.model import SolidModel
 
-__all__ = ["CoupledProblem", "build_problem", "load_case_image", "build_interface", "fluids_from_case"]
+__all__ = ["CoupledProblem", "build_problem", "load_case_image", "build_interface", "fluids_from_case",
+           "throat_cylinders"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -111,12 +112,28 @@ def build_interface(case: Case, network: Network, labels: np.ndarray, mesh: Soli
         wall[mesh.nodes_tagged("pore_wall")] = True
         return hull_interface(network.pore_coords, network.pore_radius, mesh.points,
                               n_test_points=ic.n_test_points, tolerance=ic.tolerance,
-                              rng=np.random.default_rng(ic.seed), candidates=wall)
+                              rng=np.random.default_rng(ic.seed), candidates=wall,
+                              throats=throat_cylinders(network) if ic.throat_forces else None)
     facets = mesh.facets_tagged("pore_wall")
     normals, _ = boundary_facet_normals(mesh.points, mesh.tets, facets)
     owner = facet_pores_from_labels(mesh.points, facets, normals, labels, voxel_size, origin,
                                     max_steps=max(4, 2 * case.solid.coarsen))
     return traction_interface(mesh.points, mesh.tets, facets, owner, network.n_pores)
+
+
+def throat_cylinders(net: Network):
+    """(conns, radius, ends (Nt, 2, 3)) of the cylindrical part of every throat, m.
+
+    The cylinder starts ``throat_pore_length[:, 0]`` from pore i's centre along the centre line
+    and ends ``throat_pore_length[:, 1]`` before pore j's.
+    """
+    c = net.pore_coords
+    i, j = net.throat_conns[:, 0], net.throat_conns[:, 1]
+    d = c[j] - c[i]
+    a = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    start = c[i] + a * net.throat_pore_length[:, [0]]
+    end = c[j] - a * net.throat_pore_length[:, [1]]
+    return net.throat_conns, net.throat_radius, np.stack([start, end], axis=1)
 
 
 def build_problem(case: Case) -> CoupledProblem:
