@@ -131,3 +131,29 @@ def test_subiterations_converge_in_weak_coupling():
     for a, b in zip(explicit, implicit, strict=True):
         assert 2 <= b["subiterations"] <= 6 and b["coupling_residual"] < 1e-9
         np.testing.assert_allclose(b["max_displacement_m"], a["max_displacement_m"], rtol=1e-6)
+
+
+def test_failure_mid_run_keeps_checkpoint_and_outputs(tmp_path, monkeypatch):
+    """A solver failure at step 2 stops with the typed error; step 1's checkpoint, the time series
+    so far and a summary saying what failed stay; --resume then finishes the run."""
+    from porefsi.errors import ConvergenceError
+
+    real = CoupledRun._solid_step
+    calls = {"n": 0}
+
+    def flaky(self, *a, **k):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise ConvergenceError("CG did not converge (injected)", [1.0, 0.5])
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(CoupledRun, "_solid_step", flaky)
+    out = tmp_path / "run"
+    with pytest.raises(ConvergenceError):
+        run_case(_small(), out, progress=False)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "failed" and "injected" in s["error"] and s["n_exchange_steps"] == 1
+    assert len(list(csv.DictReader((out / "timeseries.csv").open()))) == 2
+    monkeypatch.setattr(CoupledRun, "_solid_step", real)
+    done = run_case(_small(), out, resume=True, progress=False)
+    assert done.summary["status"] == "completed" and done.summary["n_exchange_steps"] == 3

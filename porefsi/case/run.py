@@ -99,6 +99,11 @@ def _figures(out: Path, ts: dict, snapshots: list, run: CoupledRun, progress: bo
         made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, mag,
                                       fig / f"displacement_{tag}.png", label="|u| (nm)", cut="y",
                                       clim=(0.0, max(float(np.percentile(mag, 99)), 1e-30))))
+        fn = np.linalg.norm(s["force"], axis=1) * 1e9
+        made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, fn,
+                                      fig / f"pore_force_{tag}.png", label="|pore force| (nN)", cmap="inferno",
+                                      cut="y", clim=(0.0, max(float(np.percentile(fn[fn > 0], 99)) if np.any(fn > 0)
+                                                          else 0.0, 1e-30))))
         vm = s["von_mises"] * 1e-6
         made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, vm,
                                       fig / f"von_mises_{tag}.png", label="von Mises (MPa)", cmap="magma", cut="y",
@@ -208,10 +213,10 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
 def _snapshot(rec: ExchangeRecord) -> dict:
     return {"t": rec.t, "step": rec.step, "coords": rec.network.pore_coords.copy(),
             "radius": rec.network.pore_radius.copy(), "nw_saturation": np.asarray(rec.flow.nw_saturation).copy(),
-            "displacement": rec.displacement, "von_mises": rec.von_mises}
+            "displacement": rec.displacement, "von_mises": rec.von_mises, "force": rec.nodal_force}
 
 
-_SNAP_KEYS = ("coords", "radius", "nw_saturation", "displacement", "von_mises")
+_SNAP_KEYS = ("coords", "radius", "nw_saturation", "displacement", "von_mises", "force")
 
 
 def _save(path, run: CoupledRun, case: Case, rows, snapshots, setup_seconds) -> None:
