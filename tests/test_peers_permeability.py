@@ -4,6 +4,12 @@ Run with the peers environment: ``python -m pytest -m peers tests/test_peers_per
 OpenPNM is an independent implementation of the same network model: given porefsi's conduit size
 factors, it combines the conduit segments itself (``generic_hydraulic``), assembles and solves its
 own pressure system (``StokesFlow``) and measures the inlet rate itself (``rate``).
+
+OpenPNM's usual set-up imposes the reservoir pressures at the face pores' centres: porefsi's
+``boundary="centre"``. porefsi's default ``boundary="conduit"`` is checked against OpenPNM on a network
+extended (``topotools.extend``) with two reservoir pores, each face pore joined to its reservoir by a
+throat whose size factor is that of a cylinder of the pore radius from the centre to the face (computed
+here from the coordinates, floored at R/4).
 """
 
 import numpy as np
@@ -63,7 +69,7 @@ def _openpnm_k(net, d, axis, mu=1e-3, dp=1.0):
 def _compare(net, axis):
     d = to_openpnm(net)
     k_op, p_op, g_op, keep = _openpnm_k(net, d, axis)
-    res = absolute_permeability(net, axis)
+    res = absolute_permeability(net, axis, boundary="centre")
     assert res.k_m2 == pytest.approx(k_op, rel=1e-10, abs=0)
     np.testing.assert_array_equal(np.isnan(res.pressure), ~keep)
     np.testing.assert_allclose(res.pressure[keep], p_op[keep], rtol=0, atol=1e-10)
@@ -86,6 +92,74 @@ def test_stokesflow_extracted_berea_sample():
     net = extract_network(load_sample()).network
     ks = [_compare(net, ax) for ax in "xyz"]
     assert min(ks) > 0
+
+
+def _openpnm_k_reservoirs(net, axis, mu=1e-3, dp=1.0):
+    """OpenPNM StokesFlow with two reservoir pores joined to the face pores by boundary-conduit throats."""
+    keep = _spanning(net, axis)
+    pn = _openpnm_network(to_openpnm(net), ~keep)
+    ax = "xyz".index(axis)
+    lo = net.origin[ax]
+    hi = lo + net.extent[ax]
+    x, R = pn["pore.coords"][:, ax], pn["pore.diameter"] / 2
+    new_throats, factors = [], []
+    for k, (face, dist) in enumerate(((f"{axis}min", x - lo), (f"{axis}max", hi - x))):
+        ps = pn.pores(face)
+        new_throats.append(np.column_stack([ps, np.full(ps.size, pn.Np + k)]))
+        factors.append(np.pi * R[ps] ** 4 / (8 * np.maximum(dist[ps], R[ps] / 4)))  # Hagen-Poiseuille
+    centre = pn["pore.coords"].mean(axis=0)
+    res_coords = np.array([centre, centre])
+    res_coords[:, ax] = lo, hi
+    nt0 = pn.Nt
+    op.topotools.extend(network=pn, coords=res_coords, conns=np.concatenate(new_throats))
+    sf_all = pn["throat.hydraulic_size_factors"]
+    sf_all[nt0:] = np.column_stack([np.full(sf_all.shape[0] - nt0, np.inf), np.concatenate(factors),
+                                    np.full(sf_all.shape[0] - nt0, np.inf)])
+    pn["throat.hydraulic_size_factors"] = sf_all
+    water = op.phase.Phase(network=pn)
+    water["pore.viscosity"] = mu
+    water.add_model(propname="throat.hydraulic_conductance",
+                    model=op.models.physics.hydraulic_conductance.generic_hydraulic)
+    sf = op.algorithms.StokesFlow(network=pn, phase=water)
+    sf.set_value_BC(pores=[pn.Np - 2], values=dp)
+    sf.set_value_BC(pores=[pn.Np - 1], values=0.0)
+    sf.run()
+    q = float(sf.rate(pores=[pn.Np - 2], mode="group")[0])
+    pressure = np.full(net.n_pores, np.nan)
+    pressure[keep] = sf["pore.pressure"][:-2]
+    return q, pressure
+
+
+@pytest.mark.parametrize("axis", ["x", "y", "z"])
+def test_conduit_boundary_against_openpnm_reservoir_pores(rng, axis):
+    net = lattice_network((7, 6, 5), rng=rng, drop=0.3)
+    # Move the face pores about so the boundary conduits differ (some floored at R/4).
+    ax = "xyz".index(axis)
+    coords = net.pore_coords.copy()
+    lo, hi = net.origin[ax], net.origin[ax] + net.extent[ax]
+    inl, out = net.inlet(axis), net.outlet(axis)
+    coords[inl, ax] = lo + rng.uniform(0.0, 5e-6, inl.sum())
+    coords[out, ax] = hi - rng.uniform(0.0, 5e-6, out.sum())
+    net = net.replace(pore_coords=coords)
+    q_op, p_op = _openpnm_k_reservoirs(net, axis)
+    res = absolute_permeability(net, axis)
+    assert res.flow_rate == pytest.approx(q_op, rel=1e-10, abs=0)
+    np.testing.assert_array_equal(np.isnan(res.pressure), np.isnan(p_op))
+    ok = np.isfinite(p_op)
+    np.testing.assert_allclose(res.pressure[ok], p_op[ok], rtol=0, atol=1e-10)
+
+
+def test_conduit_boundary_extracted_berea_sample_against_openpnm():
+    from porefsi.image import load_sample
+    from porefsi.network.extract import extract_network
+
+    net = extract_network(load_sample()).network
+    for axis in "xyz":
+        q_op, p_op = _openpnm_k_reservoirs(net, axis)
+        res = absolute_permeability(net, axis)
+        assert res.flow_rate == pytest.approx(q_op, rel=1e-10, abs=0)
+        ok = np.isfinite(p_op)
+        np.testing.assert_allclose(res.pressure[ok], p_op[ok], rtol=0, atol=1e-10)
 
 
 def test_npz_loads_into_openpnm(rng, tmp_path):
@@ -133,6 +207,6 @@ def test_openpnm_cubic_with_openpnm_geometry(axis):
     sf.set_value_BC(pores=pn.pores(f"{axis}max"), values=0.0)
     sf.run()
     q = float(sf.rate(pores=pn.pores(f"{axis}min"), mode="group")[0])
-    res = absolute_permeability(net, axis)
+    res = absolute_permeability(net, axis, boundary="centre")
     assert res.flow_rate == pytest.approx(q, rel=1e-10, abs=0)
     np.testing.assert_allclose(res.pressure, sf["pore.pressure"], rtol=0, atol=1e-10)

@@ -1,12 +1,23 @@
-"""Single-phase absolute permeability: closed forms, additivity, conservation, scaling, isotropy."""
+"""Single-phase absolute permeability: closed forms, additivity, conservation, scaling, isotropy.
+
+Closed forms with the default boundary conduits (``boundary="conduit"``): a face pore is joined to its
+reservoir by a cylinder of the pore radius from its centre to the face, resistance factor
+``8 L_b / (pi R^4)`` (Hagen-Poiseuille), in series with the network conduits.
+"""
 
 import numpy as np
 import pytest
 from scipy.integrate import quad
 
 from porefsi.errors import ConvergenceError, InputError, NetworkError
+from porefsi.flow import _drainage_graph
 from porefsi.flow.permeability import MILLIDARCY, absolute_permeability, flow_field
-from porefsi.network.geometry import cylinder_resistance, sphere_segment_resistance
+from porefsi.network.geometry import (
+    boundary_conduit_lengths,
+    boundary_resistance,
+    cylinder_resistance,
+    sphere_segment_resistance,
+)
 from porefsi.network.network import Network
 
 VS = 1e-6  # voxel size of the hand-built networks, m
@@ -71,25 +82,87 @@ def _hp_resistance_quadrature(R, r, lp, lt):
 
 
 # --- (a) single chain: closed form ------------------------------------------------------------
+R0, R_T = 3e-6, 1.5e-6  # pore and throat radius of the uniform lattice, m
+A_PART = np.sqrt(R0**2 - R_T**2)  # pore part of a conduit (where the sphere narrows to the throat)
+
+
+def _h_conduit():
+    """Resistance factor of one uniform-lattice conduit (pore part + cylinder + pore part), 1/m^3."""
+    return 2 * sphere_segment_resistance(R0, R_T, A_PART) + cylinder_resistance(R_T, A_CELL * VS - 2 * A_PART)
+
+
 @pytest.mark.parametrize("n_pores", [2, 5])
 def test_chain_matches_closed_form_and_quadrature(n_pores):
     net = lattice_network((n_pores, 1, 1))
-    res = absolute_permeability(net, "x", viscosity=1e-3, dp=2.0)
-    R, r, a = 3e-6, 1.5e-6, np.sqrt(3e-6**2 - 1.5e-6**2)
-    lt = A_CELL * VS - 2 * a
-    h = 2 * sphere_segment_resistance(R, r, a) + cylinder_resistance(r, lt)
-    q = 2.0 / (1e-3 * h * (n_pores - 1))  # conduits in series
+    mu, dp = 1e-3, 2.0
+    res = absolute_permeability(net, "x", viscosity=mu, dp=dp)
+    h = _h_conduit()
+    # Boundary conduits: the end pores sit half a cell (5 um > R/4) from their faces, so each reservoir link
+    # is a cylinder of the pore radius, 5 um long, in series with the n - 1 conduits of the chain.
+    h_b = cylinder_resistance(R0, 0.5 * A_CELL * VS)
+    q = dp / (mu * (h * (n_pores - 1) + 2 * h_b))
     L, A = n_pores * A_CELL * VS, (A_CELL * VS) ** 2
-    k_exact = q * 1e-3 * L / (A * 2.0)
+    k_exact = q * mu * L / (A * dp)
+    assert res.info["boundary"] == "conduit"
     assert res.flow_rate == pytest.approx(q, rel=1e-12, abs=0)
     assert res.k_m2 == pytest.approx(k_exact, rel=1e-12, abs=0)
     assert res.k_mD == pytest.approx(k_exact / MILLIDARCY, rel=1e-12, abs=0)
     # The same conduit resistance by independent numerical quadrature of the Hagen-Poiseuille integral.
-    h_quad = _hp_resistance_quadrature(R, r, a, lt)
+    h_quad = _hp_resistance_quadrature(R0, R_T, A_PART, A_CELL * VS - 2 * A_PART)
     assert h == pytest.approx(h_quad, rel=1e-9, abs=0)
-    # Linear pressure drop along a uniform chain.
-    np.testing.assert_allclose(res.pressure, 2.0 * (1 - np.arange(n_pores) / (n_pores - 1)), atol=1e-14)
+    # Pressure drops q mu h_b over the inlet conduit, then linearly along the chain, q mu h_b again to 0.
+    p_expected = dp - q * mu * (h_b + h * np.arange(n_pores))
+    np.testing.assert_allclose(res.pressure, p_expected, rtol=0, atol=1e-14)
+    assert res.pressure[-1] == pytest.approx(q * mu * h_b, rel=1e-12, abs=0)
     assert (res.length, res.area, res.axis, res.n_pores_solved) == (L, A, "x", n_pores)
+
+
+@pytest.mark.parametrize("n_pores", [2, 5])
+def test_chain_centre_boundary_closed_form(n_pores):
+    """boundary='centre': Dirichlet at the end pore centres, so only the n - 1 conduits between them resist."""
+    net = lattice_network((n_pores, 1, 1))
+    res = absolute_permeability(net, "x", viscosity=1e-3, dp=2.0, boundary="centre")
+    q = 2.0 / (1e-3 * _h_conduit() * (n_pores - 1))
+    L, A = n_pores * A_CELL * VS, (A_CELL * VS) ** 2
+    assert res.info["boundary"] == "centre"
+    assert res.flow_rate == pytest.approx(q, rel=1e-12, abs=0)
+    assert res.k_m2 == pytest.approx(q * 1e-3 * L / (A * 2.0), rel=1e-12, abs=0)
+    np.testing.assert_allclose(res.pressure, 2.0 * (1 - np.arange(n_pores) / (n_pores - 1)), atol=1e-14)
+    # The centre condition drops the two boundary conduits: strictly more flow for the same box.
+    assert res.k_m2 > absolute_permeability(net, "x").k_m2
+
+
+def test_boundary_conduit_floor_and_shared_definition():
+    net = lattice_network((3, 2, 1))
+    L_lo, L_hi = boundary_conduit_lengths(net, "x")
+    x = net.pore_coords[:, 0]
+    np.testing.assert_allclose(L_lo, x, rtol=1e-15)
+    np.testing.assert_allclose(L_hi, 3 * A_CELL * VS - x, rtol=1e-15)
+    # A centre closer to the face than R/4 keeps a conduit of length R/4 (finite conductance).
+    coords = net.pore_coords.copy()
+    coords[0, 0] = 0.1 * R0
+    moved = net.replace(pore_coords=coords)
+    m_lo, m_hi = boundary_conduit_lengths(moved, 0)
+    assert m_lo[0] == pytest.approx(R0 / 4, rel=1e-15) and m_hi[0] == pytest.approx(3 * A_CELL * VS - 0.1 * R0)
+    np.testing.assert_array_equal(m_lo[1:], L_lo[1:])
+    h_lo, h_hi = boundary_resistance(moved, "x")
+    np.testing.assert_allclose(h_lo, 8 * m_lo / (np.pi * R0**4), rtol=1e-14)
+    np.testing.assert_allclose(h_hi, 8 * m_hi / (np.pi * R0**4), rtol=1e-14)
+    # The drainage graph's boundary edges use the same lengths (one definition for both flow models).
+    for ax in range(3):
+        for mine, theirs in zip(boundary_conduit_lengths(moved, ax), _drainage_graph.boundary_lengths(moved, ax),
+                                strict=True):
+            np.testing.assert_array_equal(mine, theirs)
+
+
+def test_floored_inlet_conduit_enters_the_closed_form():
+    net = lattice_network((3, 1, 1))
+    coords = net.pore_coords.copy()
+    coords[0, 0] = 0.1 * R0  # 0.3 um from the xmin face: conduit floored at R/4 = 0.75 um
+    res = absolute_permeability(net.replace(pore_coords=coords), "x")
+    h_in, h_out = cylinder_resistance(R0, R0 / 4), cylinder_resistance(R0, 0.5 * A_CELL * VS)
+    q = 1.0 / (1e-3 * (2 * _h_conduit() + h_in + h_out))
+    assert res.flow_rate == pytest.approx(q, rel=1e-12, abs=0)
 
 
 # --- (b) parallel chains: additivity -----------------------------------------------------------
@@ -128,26 +201,41 @@ def test_parallel_chains_are_additive(rng):
 # --- (c) mass conservation on random networks ------------------------------------------------------
 @pytest.mark.parametrize("axis", ["x", "y", "z"])
 @pytest.mark.parametrize("solver", ["direct", "cg"])
-def test_mass_conservation_random_lattice(rng, axis, solver):
+@pytest.mark.parametrize("boundary", ["conduit", "centre"])
+def test_mass_conservation_random_lattice(rng, axis, solver, boundary):
     net = lattice_network((6, 5, 4), rng=rng, drop=0.3)
-    res = absolute_permeability(net, axis, solver=solver, dp=3.0)
+    mu, dp = 1e-3, 3.0
+    res = absolute_permeability(net, axis, solver=solver, dp=dp, boundary=boundary)
     info = res.info
-    # In - out is the sum of the residuals of the free-pore equations: round-off for the direct solve;
+    # In - out is the sum of the residuals of the pore equations: round-off for the direct solve;
     # for CG (rtol 1e-12 on ||b - Ax|| / ||b||) it may reach sqrt(n) * 1e-12, so 1e-10 is the bound there.
     tol = 1e-12 if solver == "direct" else 1e-10
+    assert info["boundary"] == boundary
     assert info["residual"] <= (1e-13 if solver == "direct" else 1e-11)
     assert info["flow_rate_out"] == pytest.approx(info["flow_rate_in"], rel=tol, abs=0)
     assert info["mass_balance_error"] < tol
-    # Kirchhoff at every solved interior pore.
-    q = flow_field(net, res.pressure, 1e-3)
+    # Kirchhoff at every solved pore; with boundary conduits the face pores balance their reservoir flows too.
+    q = flow_field(net, res.pressure, mu)
     c = net.throat_conns
     ok = np.isfinite(q)
     net_out = np.bincount(c[ok, 0], q[ok], net.n_pores) - np.bincount(c[ok, 1], q[ok], net.n_pores)
-    interior = np.isfinite(res.pressure) & ~net.inlet(axis) & ~net.outlet(axis)
-    assert np.max(np.abs(net_out[interior])) <= tol * res.flow_rate
-    # Maximum principle: pressures between the boundary values.
-    p = res.pressure[np.isfinite(res.pressure)]
-    assert p.min() >= -1e-12 and p.max() <= 3.0 + 1e-12
+    solved = np.isfinite(res.pressure)
+    inlet, outlet = net.inlet(axis), net.outlet(axis)
+    if boundary == "conduit":
+        h_lo, h_hi = boundary_resistance(net, axis)
+        from_reservoirs = np.where(inlet, (dp - res.pressure) / (mu * h_lo), 0.0) - np.where(
+            outlet, res.pressure / (mu * h_hi), 0.0
+        )
+        balance = (net_out - from_reservoirs)[solved]
+        assert np.sum(from_reservoirs[solved & inlet]) == pytest.approx(res.flow_rate, rel=1e-13, abs=0)
+    else:
+        balance = net_out[solved & ~inlet & ~outlet]
+    assert np.max(np.abs(balance)) <= tol * res.flow_rate
+    # Maximum principle: pressures between the reservoir values (strictly inside with boundary conduits).
+    p = res.pressure[solved]
+    if boundary == "conduit":
+        assert p.min() > 0 and p.max() < dp
+    assert p.min() >= -1e-12 and p.max() <= dp + 1e-12
 
 
 def test_cg_and_direct_agree(rng):
@@ -184,15 +272,17 @@ def _scaled(net, s):
     )
 
 
-def test_k_independent_of_dp_and_viscosity_and_scales_with_length_squared(rng):
+@pytest.mark.parametrize("boundary", ["conduit", "centre"])
+def test_k_independent_of_dp_and_viscosity_and_scales_with_length_squared(rng, boundary):
     net = lattice_network((5, 4, 4), rng=rng, drop=0.25)
-    ref = absolute_permeability(net, "z")
+    ref = absolute_permeability(net, "z", boundary=boundary)
     for mu, dp in ((1e-3, 1.0), (3.7e-2, 1.0), (1e-3, 250.0), (2e-5, 1e4)):
-        res = absolute_permeability(net, "z", viscosity=mu, dp=dp)
+        res = absolute_permeability(net, "z", viscosity=mu, dp=dp, boundary=boundary)
         assert res.k_m2 == pytest.approx(ref.k_m2, rel=1e-12, abs=0)
         assert res.flow_rate == pytest.approx(ref.flow_rate * dp / mu * 1e-3, rel=1e-12, abs=0)
     for s in (0.5, 3.0, 40.0):
-        assert absolute_permeability(_scaled(net, s), "z").k_m2 == pytest.approx(ref.k_m2 * s**2, rel=1e-12, abs=0)
+        k_s = absolute_permeability(_scaled(net, s), "z", boundary=boundary).k_m2
+        assert k_s == pytest.approx(ref.k_m2 * s**2, rel=1e-12, abs=0)
 
 
 # --- (e) isotropy --------------------------------------------------------------------------------
@@ -201,11 +291,10 @@ def test_isotropic_lattice_has_equal_k_and_the_series_value():
     net = lattice_network((n, n, n))
     ks = [absolute_permeability(net, ax).k_m2 for ax in "xyz"]
     assert ks[1] == pytest.approx(ks[0], rel=1e-12, abs=0) and ks[2] == pytest.approx(ks[0], rel=1e-12, abs=0)
-    # Transverse throats carry no flow: n^2 independent chains of n - 1 conduits each.
-    R, r = 3e-6, 1.5e-6
-    a = np.sqrt(R**2 - r**2)
-    h = 2 * sphere_segment_resistance(R, r, a) + cylinder_resistance(r, A_CELL * VS - 2 * a)
-    k = n * n / (h * (n - 1)) * (n * A_CELL * VS) / (n * A_CELL * VS) ** 2
+    # Transverse throats carry no flow: n^2 independent chains of n - 1 conduits and two boundary conduits
+    # (half a cell each) per chain.
+    h = _h_conduit() * (n - 1) + 2 * cylinder_resistance(R0, 0.5 * A_CELL * VS)
+    k = n * n / h * (n * A_CELL * VS) / (n * A_CELL * VS) ** 2
     assert ks[0] == pytest.approx(k, rel=1e-12, abs=0)
 
 
@@ -251,13 +340,24 @@ def test_no_percolating_path_raises_network_error():
         absolute_permeability(net.replace(pore_faces=net.pore_faces & [1, 1, 0, 0, 1, 1]), "y")
 
 
-def test_pore_on_both_faces_is_refused():
+def test_pore_on_both_faces_has_both_conduits():
     net = lattice_network((3, 1, 1))  # along y, every pore touches ymin and ymax
-    with pytest.raises(NetworkError, match="touch both the ymin and ymax"):
-        absolute_permeability(net, "y")
+    res = absolute_permeability(net, "y")
+    # Each pore is joined to both reservoirs by half-cell conduits of its radius: together one cylinder of
+    # radius R spanning the box, so k is Hagen-Poiseuille's pi R^4 / 8 per pore over the box section,
+    # each pore sits at dp / 2 and the x throats carry nothing.
+    assert res.k_m2 == pytest.approx(3 * np.pi * R0**4 / 8 / res.area, rel=1e-12, abs=0)
+    assert res.area == pytest.approx(3 * A_CELL * VS * A_CELL * VS, rel=1e-15)
+    np.testing.assert_allclose(res.pressure, 0.5, rtol=1e-13)
+    assert res.info["mass_balance_error"] < 1e-13
+    # The centre condition would set those pores to both dp and 0: refused, naming the fix.
+    with pytest.raises(NetworkError, match="touch both the ymin and ymax.*boundary='conduit'"):
+        absolute_permeability(net, "y", boundary="centre")
 
 
-@pytest.mark.parametrize("kw", [{"viscosity": 0.0}, {"dp": -1.0}, {"dp": float("nan")}, {"solver": "lu"}])
+@pytest.mark.parametrize(
+    "kw", [{"viscosity": 0.0}, {"dp": -1.0}, {"dp": float("nan")}, {"solver": "lu"}, {"boundary": "dirichlet"}]
+)
 def test_bad_parameters(kw):
     with pytest.raises(InputError):
         absolute_permeability(lattice_network((3, 2, 2)), "x", **kw)

@@ -9,15 +9,28 @@ conductance is then
 
 which is also how segments holding different fluids combine (in series, never in parallel;
 the seed paper's eq. 2.6 writes a parallel sum, see ``docs/theory.md``).
+
+A pore on a face of the image box is joined to that face (a reservoir) by a *boundary conduit*:
+a cylinder of the pore radius running from the pore centre to the face
+(:func:`boundary_conduit_lengths`, :func:`boundary_resistance`). Single-phase permeability and
+the drainage graph use the same definition.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from porefsi.image.voxel_image import axis_index
 from porefsi.network.network import Network
 
-__all__ = ["cylinder_resistance", "sphere_segment_resistance", "resistance_factors", "conduit_conductance"]
+__all__ = [
+    "cylinder_resistance",
+    "sphere_segment_resistance",
+    "resistance_factors",
+    "conduit_conductance",
+    "boundary_conduit_lengths",
+    "boundary_resistance",
+]
 
 
 def cylinder_resistance(radius, length):
@@ -90,3 +103,47 @@ def conduit_conductance(net: Network, viscosity) -> np.ndarray:
     h = resistance_factors(net)
     mu = np.broadcast_to(np.asarray(viscosity, dtype=float), h.shape)
     return 1.0 / np.sum(mu * h, axis=1)
+
+
+def boundary_conduit_lengths(net: Network, axis: str | int) -> tuple[np.ndarray, np.ndarray]:
+    r"""Lengths of the boundary conduits from every pore to the low and high faces of ``axis``, m.
+
+    .. math:: L_{lo} = \max(x_i - x_{lo},\ R_i/4), \qquad L_{hi} = \max(x_{hi} - x_i,\ R_i/4),
+
+    with :math:`x_i` the pore centre along the axis, :math:`x_{lo}, x_{hi}` the faces of the image
+    box (``net.origin`` and ``net.origin + net.extent``) and :math:`R_i` the pore radius. The floor
+    keeps a finite conductance for a centre on (or, after a deformation, beyond) the face. Only the
+    entries of pores on the corresponding face (``net.inlet(axis)`` / ``net.outlet(axis)``) are used
+    by the flow models; the others are returned for convenience.
+
+    Parameters
+    ----------
+    net : Network
+    axis : {'x', 'y', 'z'} or int
+
+    Returns
+    -------
+    L_lo, L_hi : ndarray of float, shape (Np,)
+        m, each >= R / 4 > 0.
+    """
+    ax = axis_index(axis)
+    lo = float(net.origin[ax])
+    hi = lo + float(net.extent[ax])
+    x = net.pore_coords[:, ax]
+    floor = 0.25 * net.pore_radius
+    return np.maximum(x - lo, floor), np.maximum(hi - x, floor)
+
+
+def boundary_resistance(net: Network, axis: str | int) -> tuple[np.ndarray, np.ndarray]:
+    """Resistance factors of the boundary conduits to the low and high faces of ``axis``, 1/m³.
+
+    Each is a cylinder of the pore radius over :func:`boundary_conduit_lengths`:
+    ``h = 8 L / (pi R^4)``; with viscosity ``mu`` its conductance is ``1 / (mu h)``.
+
+    Returns
+    -------
+    h_lo, h_hi : ndarray of float, shape (Np,)
+        1/m³, finite and positive.
+    """
+    L_lo, L_hi = boundary_conduit_lengths(net, axis)
+    return cylinder_resistance(net.pore_radius, L_lo), cylinder_resistance(net.pore_radius, L_hi)
