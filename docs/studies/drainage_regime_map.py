@@ -56,7 +56,7 @@ def main(argv=None):
         ax.set_xlabel("log10 Ca (mu_n u / sigma)")
         ax.set_ylabel("log10 M (mu_n / mu_w)")
         ax.set_title(f"{name}: Sw at breakthrough")
-        ax.text(-8.8, 2.4, "stable", color="w")
+        ax.text(-4.0, 2.4, "stable", color="w")
         ax.text(-8.8, -2.6, "capillary fingering", color="w")
         ax.text(-4.0, -2.6, "viscous fingering", color="w")
         print(name, "Sw at breakthrough; rows log10 M =", np.round(np.log10(ms), 2).tolist(),
