@@ -193,15 +193,32 @@ class CoupledRun:
         itf = build_interface(p.case, new, ex.labels, p.mesh, p.image.voxel_size, p.image.origin)
         return new, itf, ex.labels, None
 
-    def _carry(self, sim: DrainageSimulator, net: Network) -> DrainageSimulator:
+    @staticmethod
+    def _carry(sim: DrainageSimulator, net: Network, labels_old=None, labels_new=None) -> DrainageSimulator:
+        """Carry the drainage state onto ``net``.
+
+        Same topology: sizes only. Otherwise a remap in which each new pore's non-wetting
+        saturation is the voxel-weighted mean over the old pores its voxels belonged to (labels of
+        ``sim.net`` and of ``net``), so the stored volume is kept.
+        """
         if net is sim.net:
             return sim
         if _same_topology(net, sim.net):
             return sim.with_network(net)
-        raise NetworkError(
-            "re-extraction changed the pore network's topology, and carrying a drainage state across a "
-            "topology change is not supported yet; use network.update = 'geometric' (sub-voxel) for this case"
-        )
+        if labels_new is None or labels_old is None:
+            raise NetworkError("the network topology changed but no voxel labels were given to remap the state")
+        st = sim.state
+        sat_old = np.concatenate([np.asarray(st.nw_saturation, float), [0.0]])  # index -1 -> solid: 0
+        fill_old = np.concatenate([np.nan_to_num(sim.invasion_time(), nan=np.inf), [np.inf]])
+        old = np.asarray(labels_old).ravel()
+        new = np.asarray(labels_new).ravel()
+        m = new >= 0
+        n_new = net.n_pores
+        count = np.bincount(new[m], minlength=n_new).astype(float)
+        sat = np.bincount(new[m], weights=sat_old[old[m]], minlength=n_new) / np.maximum(count, 1.0)
+        first = np.full(n_new, np.inf)
+        np.minimum.at(first, new[m], fill_old[old[m]])
+        return sim.remap(net, np.clip(sat, 0.0, 1.0), invasion_time=np.where(np.isfinite(first), first, np.nan))
 
     # ---- the loop -----------------------------------------------------------------------
     def initial_record(self) -> ExchangeRecord:
@@ -234,7 +251,8 @@ class CoupledRun:
                 n_iter += 1
                 tt = time.perf_counter()
                 sim = sim_start if n_max == 1 else sim_start.with_network(self.network)
-                sim = self._carry(sim, net_k)
+                sim = self._carry(sim, net_k, self.labels, lab_k)
+                lab_sim = lab_k
                 pressures = {t0: P0}
                 for s in sorted(set(self.load_times(t0, dt)) | {t1}):
                     pressures[s] = _pressure(sim.advance_to(s))
@@ -279,7 +297,7 @@ class CoupledRun:
             ea = ea_hist[-1] if ea_hist else None
             self.u, self.v, self.t = u1, v1, t1
             tt = time.perf_counter()
-            self.sim = self._carry(sim, net_k)
+            self.sim = self._carry(sim, net_k, lab_sim, lab_k)
             self.network, self.interface, self.labels = net_k, itf_k, lab_k
             secs["update"] += time.perf_counter() - tt
             self.step_index += 1
