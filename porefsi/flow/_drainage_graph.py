@@ -22,7 +22,7 @@ from scipy.sparse.csgraph import connected_components
 from porefsi.errors import NetworkError
 from porefsi.flow.fluids import Fluids
 from porefsi.image.voxel_image import axis_index
-from porefsi.network.geometry import cylinder_resistance, resistance_factors
+from porefsi.network.geometry import boundary_conduit_lengths, cylinder_resistance, resistance_factors
 from porefsi.network.network import Network
 
 __all__ = ["DrainageGraph", "build_graph", "spanning_pores", "boundary_lengths"]
@@ -56,14 +56,10 @@ def spanning_pores(net: Network, axis) -> np.ndarray:
 def boundary_lengths(net: Network, axis) -> tuple[np.ndarray, np.ndarray]:
     """Boundary-conduit lengths (m) of every pore to the low and the high face of ``axis``.
 
-    Distance from the pore centre to the face, floored at ``R / 4`` (see the module notes).
+    The one definition shared with single-phase permeability:
+    :func:`porefsi.network.geometry.boundary_conduit_lengths`.
     """
-    ax = axis_index(axis)
-    lo = net.origin[ax]
-    hi = lo + net.extent[ax]
-    x = net.pore_coords[:, ax]
-    floor = 0.25 * net.pore_radius
-    return np.maximum(x - lo, floor), np.maximum(hi - x, floor)
+    return boundary_conduit_lengths(net, axis)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
