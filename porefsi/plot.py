@@ -54,6 +54,7 @@ def plot_timeseries(ts: Mapping[str, Sequence[float]], path: str | Path, *, titl
     for ax, (key, label, scale) in zip(axes.ravel(), panels, strict=False):
         ax.plot(t, np.asarray(ts[key], float) * scale, "-", lw=1.5)
         ax.set_ylabel(label)
+        ax.ticklabel_format(axis="y", useOffset=False)  # tiny changes (e.g. k over a run) stay readable
         ax.grid(alpha=0.3)
     for ax in axes.ravel()[len(panels):]:
         ax.set_visible(False)
