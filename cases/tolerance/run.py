@@ -70,7 +70,7 @@ def run_one(case) -> dict:
     loaded_geom = np.unique(np.concatenate([n for n in itf.pore_nodes if n.size] or [np.zeros(0, int)]))
     return {
         "U": last.displacement, "points": prob.mesh.points, "extent": prob.image.extent,
-        "mean_pore_radius_m": float(prob.network.pore_radius.mean()),
+        "mean_pore_radius_m": float(prob.network.pore_radius.mean()), "node_spacing_m": float(prob.node_spacing),
         "n_loaded_nodes": int(loaded_geom.size), "n_unloaded_pores": int(itf.n_unloaded),
         "n_pores": int(prob.network.n_pores), "n_nodes": int(prob.mesh.n_nodes),
         "resultant_ratio": float(np.linalg.norm(F.sum(axis=0)) / fmag.sum()) if fmag.sum() > 0 else 0.0,
@@ -115,7 +115,7 @@ def main(argv=None) -> dict:
     reference = {"eps": "0.5 r_i", "u_node_A_m": float(mag_ref[a]), "u_node_B_m": float(mag_ref[b]),
                  **{k: ref[k] for k in ("max_displacement_m", "max_von_mises_Pa", "n_loaded_nodes", "n_unloaded_pores",
                                         "resultant_ratio", "total_force_N", "interface_seconds", "wall_seconds",
-                                        "mean_pore_radius_m", "n_pores", "n_nodes")}}
+                                        "mean_pore_radius_m", "n_pores", "n_nodes", "node_spacing_m")}}
 
     import matplotlib
 
@@ -125,6 +125,10 @@ def main(argv=None) -> dict:
     e_um = np.array([row["eps_m"] for row in table]) * 1e6
     eref = 0.5 * ref["mean_pore_radius_m"] * 1e6
     fig, ax = plt.subplots(1, 3, figsize=(15, 4.3))
+    h_um = reference["node_spacing_m"] * 1e6
+    for a_ in ax:
+        a_.axvline(h_um, color="grey", ls=":", lw=1)
+        a_.text(h_um, 0.98, " node spacing", transform=a_.get_xaxis_transform(), va="top", fontsize=8, color="grey")
     for key, lab, st, c in (("u_node_A_m", "node A", "o-", "C0"), ("u_node_B_m", "node B", "s-", "C1"),
                             ("max_displacement_m", "max over nodes", "^--", "C2")):
         ax[0].plot(e_um, [row[key] * 1e9 for row in table], st, color=c, label=lab)
