@@ -113,8 +113,10 @@ class PressureSolver:
         t0 = time.perf_counter()
         s = 1.0 / np.sqrt(A.diagonal())
         cap = self.max_rank + 64
+        # columns A0^-1 e_v are stored as *rows* of WT (cap, n): a combination of a few of them
+        # gathers contiguous rows instead of multiplying the whole (n, cap) block
         self._base = dict(data=A.data.copy(), s=s, lu=_lu(_scaled(A, s)), rows=_rows(A),
-                          col_of=np.full(A.shape[0], -1, dtype=np.int64), W=np.empty((A.shape[0], cap)),
+                          col_of=np.full(A.shape[0], -1, dtype=np.int64), WT=np.empty((cap, A.shape[0])),
                           ncols=0)
         self.n_setups += 1
         self.seconds_setup += time.perf_counter() - t0
@@ -125,9 +127,9 @@ class PressureSolver:
         new = nodes[base["col_of"][nodes] < 0]
         if new.size:
             k = base["ncols"]
-            E = np.zeros((base["W"].shape[0], new.size))
+            E = np.zeros((base["WT"].shape[1], new.size))
             E[new, np.arange(new.size)] = 1.0
-            base["W"][:, k:k + new.size] = base["lu"].solve(E)
+            base["WT"][k:k + new.size] = base["lu"].solve(E).T
             base["col_of"][new] = np.arange(k, k + new.size)
             base["ncols"] = k + new.size
         return base["col_of"][nodes]
@@ -142,14 +144,14 @@ class PressureSolver:
             nz = np.flatnonzero(dd)
             S = np.unique(base["rows"][nz])
             T = np.union1d(S, np.flatnonzero(b))  # rows the solution is a combination of
-            free = base["W"].shape[1] - base["ncols"]
+            free = base["WT"].shape[0] - base["ncols"]
             if S.size > self.max_rank or np.count_nonzero(base["col_of"][T] < 0) > free:
                 self._factor(A)
                 continue
             cT = self._columns(T)
             k = base["ncols"]
-            W = base["W"][:, :k]
-            # y = A0^-1 (s b) as a combination of cached columns (b is sparse)
+            WT = base["WT"][:k]
+            # y = A0^-1 (s b) as a combination of cached columns (b is sparse): coefficients on T
             coef = np.zeros(k)
             coef[cT] = (b * s)[T]
             cS = base["col_of"][S]
@@ -157,20 +159,23 @@ class PressureSolver:
             loc[S] = np.arange(S.size)
             rr = base["rows"][nz]
             cc = A.indices[nz]
-            D = np.zeros((S.size, S.size))
-            D[loc[rr], loc[cc]] = dd[nz] * s[rr] * s[cc]
-            WSS = W[S][:, cS] if S.size else np.zeros((0, 0))
-            M = np.eye(S.size) + WSS @ D
-            try:
-                lu_m = sla.lu_factor(M, check_finite=False) if S.size else None
-            except (ValueError, np.linalg.LinAlgError):
-                self._factor(A)
-                continue
-
-            upd = (lu_m, S, cS, D, W)
-
-            y = W @ coef
-            x = _woodbury(upd, y, coef) * s
+            # D: the scaled change restricted to S x S (sparse: a few entries per changed row)
+            D = sp.csr_array((dd[nz] * s[rr] * s[cc], (loc[rr], loc[cc])), shape=(S.size, S.size))
+            if S.size:
+                WSS_T = WT[np.ix_(cS, S)]  # row j: W[S, cS_j], so this is W_SS^T
+                M = np.eye(S.size) + (D.T @ WSS_T).T  # = I + W_SS D with D sparse
+                try:
+                    lu_m = sla.lu_factor(M, check_finite=False)
+                except (ValueError, np.linalg.LinAlgError):
+                    self._factor(A)
+                    continue
+            else:
+                lu_m = None
+            upd = (lu_m, S, cS, D, WT)
+            if lu_m is not None:  # Woodbury correction on the coefficients of the cached columns
+                z = sla.lu_solve(lu_m, coef @ WT[:, S], check_finite=False)
+                coef[cS] -= D @ z
+            x = (coef @ WT) * s
             sc = 1.0 / np.sqrt(A.diagonal())
             bn = float(np.linalg.norm(b * sc))
             if bn == 0.0:
@@ -179,7 +184,7 @@ class PressureSolver:
                 r = b - A @ x
                 if float(np.linalg.norm(r * sc)) / bn <= self.rtol:
                     return x
-                x = x + _woodbury(upd, base["lu"].solve(r * s), None) * s  # refinement: one full base solve
+                x = x + _woodbury(upd, base["lu"].solve(r * s)) * s  # refinement: one full base solve
                 self.iterations += 1
             if float(np.linalg.norm((b - A @ x) * sc)) / bn <= self.rtol:
                 return x
@@ -193,15 +198,13 @@ class PressureSolver:
         self._ml = pyamg.smoothed_aggregation_solver(As, max_coarse=500)
 
 
-def _woodbury(upd, y, coef):
-    """``y - W D M^-1 y_S`` for ``y = A0^-1 b`` (or ``W @ coef`` when ``y`` is that combination)."""
-    lu_m, S, cS, D, W = upd
+def _woodbury(upd, y):
+    """``y - W D M^-1 y_S`` for ``y = A0^-1 b`` (``W`` stored transposed as cached rows ``WT``)."""
+    lu_m, S, cS, D, WT = upd
     if lu_m is None:
         return y
     z = sla.lu_solve(lu_m, y[S], check_finite=False)
-    c2 = np.zeros(W.shape[1])
-    c2[cS] = D @ z
-    return y - W @ c2 if coef is None else W @ (coef - c2)
+    return y - (D @ z) @ WT[cS]
 
 
 def _lu(As):
