@@ -62,6 +62,7 @@ class Engine:
         self._dist = None
         self._pred = None
         self._nbr_res = 1.0 / g.gw[g.nbr_edge]
+        self._diag_ref = self._wetting_diagonal()
         self._ptol = 1e-10 * float(np.max(g.pcb))
         self.rows: list[tuple] = []
 
@@ -91,6 +92,12 @@ class Engine:
         return bool(men.any() or (fa & ~self.g.inner).any())
 
     # -- pressure solve --------------------------------------------------------------------
+    def _wetting_diagonal(self):
+        """Diagonal of the all-wetting pressure matrix (sum of incident wetting conductances), (n + 1,)."""
+        g = self.g
+        n = g.n
+        return (np.bincount(g.a, g.gw, minlength=n + 2) + np.bincount(g.b, g.gw, minlength=n + 2))[:n + 1]
+
     def solve(self):
         """Solve the pressure field of the current configuration; return (cond, men, fa)."""
         g = self.g
@@ -114,7 +121,12 @@ class Engine:
         np.add.at(rhs, u, src)
         np.add.at(rhs, x, -src)
         zero = diag <= 0
-        diag[zero] = 1.0
+        # a node without conducting edges (trapped, or the inlet before any meniscus) is decoupled:
+        # its row is ``d x = 0`` with d its all-wetting diagonal, on the scale of the other rows, so
+        # the low-rank solver sees no large diagonal jump when a node decouples or couples again
+        if getattr(self, "_diag_ref", None) is None:  # engines pickled before this attribute existed
+            self._diag_ref = self._wetting_diagonal()
+        diag[zero] = self._diag_ref[zero]
         rhs[zero] = 0.0
         data = np.zeros(g.indices.size)
         data[g.pos_diag] = diag
