@@ -1,7 +1,8 @@
 """Benchmark: dynamic drainage to breakthrough at the paper's rate on ~250, 10k and 100k pores.
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/bench_drainage.py [--sizes 250 10000 100000]
-[--max-seconds S]``. Prints events, solves, skipped solves, factorisations and seconds per network
+[--max-seconds S]``. Prints events, solves, skipped solves, factorisations, refinement steps of the low-rank
+solver and seconds per network
 (timings on a shared machine are noisy). Synthetic 3-D cubic lattices with Berea-like sizes
 (spacing 40 um, pore radii 6-14 um) at the paper's injection rate 1.25e-13 m^3/s; the capillary
 number ``Ca = mu_n (Q / A_inlet_face) / sigma`` is printed (it falls as the face grows). With
@@ -51,7 +52,7 @@ def main(argv=None):
         print(f"{net.n_pores:>7d} pores  Ca={ca:.2e}  {head}: events={c['n_events']:>7d}"
               f"  fills={c['n_fills']:>6d}  "
               f"solves={c['n_solves']:>6d}  skipped={c['n_skipped_solves']:>6d}"
-              f"  factorisations={c['n_solver_setups']}  "
+              f"  factorisations={c['n_solver_setups']}  refinements={c['cg_iterations']}  "
               f"t={e.t:.4g} s  Sw={st.sw:.3f}  mass_err={st.mass_balance_error:.1e}  seconds={dt:.2f}  "
               f"events/s={c['n_events'] / dt:.1f}", flush=True)
 
