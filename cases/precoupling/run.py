@@ -8,8 +8,12 @@ Part B -- a strained regime where re-extraction matters (one-way): the solid is 
 to strains 0 ... 1.2e-2 (1.44 voxels at the top face) by static solves; at every strain the network
 is (i) re-extracted from the deformed image twice (pre-coupling iterations 1 and 2, E_a of each) and
 (ii) carried by the geometric sub-voxel update. Both are compared on pore-size statistics and
-absolute permeability. This part is one-way because the coupled loop cannot yet carry a drainage
-state across a topology change (it raises NetworkError; see README).
+absolute permeability (one-way: mechanical load only, so both see the same displacement).
+
+Part C -- the same strain rate in the two-way coupled loop (12 s, strain 1.2e-2): re-extraction
+(pre-coupling tolerance 0.01) against the geometric update; E_a per iteration and
+permeability per step. Re-extraction changes the topology here; the loop carries the drainage
+state across by voxel overlap of the old and new pore labels.
 
 Usage: python cases/precoupling/run.py [--smoke] [--out DIR]
 """
@@ -29,7 +33,6 @@ from porefsi.case.config import load_case, smoke_case
 from porefsi.case.run import run_case
 from porefsi.coupling.problem import build_problem
 from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change
-from porefsi.errors import NetworkError
 from porefsi.flow.permeability import absolute_permeability
 from porefsi.image.ops import percolating_cluster
 from porefsi.network.extract import extract_network
@@ -194,6 +197,57 @@ def figures(a: dict, b: dict, psd: dict, fig_dir: Path) -> list[str]:
     return [str(m.name) for m in made]
 
 
+def part_c(case, out: Path, t_end: float) -> dict:
+    """Two-way coupled runs under strain rate 1e-3 1/s: re-extraction against the geometric update.
+
+    The pre-coupling tolerance is the case's (0.01). A tighter one would force a second re-extraction
+    after a topology change, which the loop does not support yet (see README, known defect)."""
+    res = {}
+    for update in ("reextract", "geometric"):
+        c = case.replace(name=f"{case.name}-strained-{update}", solid={"strain_rate": 1e-3},
+                         drainage={"t_end": t_end}, network={"update": update})
+        ts = run_case(c, out / f"run_strained_{update}", figures=False, progress=False).timeseries
+        res[update] = {k: ts[k] for k in ("time_s", "permeability_m2", "mean_pore_radius_m", "precoupling_iterations",
+                                          "precoupling_Ea", "sw", "inlet_pressure_Pa", "mass_balance_error")}
+    r = np.asarray(res["reextract"]["mean_pore_radius_m"], float)
+    # E_a of the first re-extraction of each step, against the previous step's accepted network. When the
+    # accepted (last) iteration has E_a = 0, the accepted network is the first re-extraction's, so this
+    # is the change of the recorded mean radius.
+    res["reextract"]["Ea_first_iteration"] = [float("nan")] + (np.abs(np.diff(r)) / r[:-1]).tolist()
+    return res
+
+
+def figure_c(c: dict, fig_dir: Path) -> str:
+    plt = _plt()
+    re, geo = c["reextract"], c["geometric"]
+    t = np.asarray(re["time_s"])
+    fig, axs = plt.subplots(1, 2, figsize=(11, 4))
+    ea1 = np.asarray(re["Ea_first_iteration"], float)
+    ea_last = np.asarray(re["precoupling_Ea"], float)
+    axs[0].plot(t[1:], np.maximum(ea1[1:], 1e-7), "o-", label="E_a, iteration 1 (vs previous step)")
+    axs[0].plot(t[1:], np.maximum(ea_last[1:], 1e-7), "s--", label="E_a, last iteration")
+    axs[0].plot(t[1:], np.asarray(re["precoupling_iterations"][1:]) * 1e-6, "^:",
+                label="re-extractions per step (x 1e-6)")
+    axs[0].axhline(0.01, color="k", ls=":", lw=0.8, label="tolerance 0.01")
+    axs[0].set_yscale("log")
+    axs[0].set_xlabel("time (s) = strain / 1e-3")
+    axs[0].set_ylabel("E_a (0 drawn at 1e-7)")
+    axs[0].set_title("coupled run, re-extraction, strain rate 1e-3 1/s")
+    axs[0].legend(fontsize=7)
+    axs[0].grid(alpha=0.3)
+    for name, r in (("re-extraction", re), ("geometric update", geo)):
+        axs[1].plot(t, np.asarray(r["permeability_m2"]) / MD, "o-", ms=3, label=name)
+    axs[1].set_xlabel("time (s) = strain / 1e-3")
+    axs[1].set_ylabel("absolute permeability (mD)")
+    axs[1].legend(fontsize=7)
+    axs[1].grid(alpha=0.3)
+    fig.tight_layout()
+    path = fig_dir / "coupled_strained.png"
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path.name
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps)")
@@ -210,18 +264,13 @@ def main(argv=None) -> int:
     a = part_a(case, out)
     b, psd = part_b(case, strains)
     made = figures(a, b, psd, out / "figures")
-    # What the coupled loop does with the strained state (documents the NetworkError limitation).
-    try:
-        probe = case.replace(solid={"strain_rate": 1e-3}, drainage={"t_end": min(case.drainage.t_end, 6.0)})
-        run_case(probe, out / "run_strained_coupled", figures=False, progress=False)
-        coupled_strained = "completed"
-    except NetworkError as exc:
-        coupled_strained = f"NetworkError: {exc}"
+    c = part_c(case, out, t_end=12.0 if not args.smoke else 2.0)
+    made.append(figure_c(c, out / "figures"))
     res = {
         "paper": {"precoupling_iterations_to_converge": 4, "figure": 10},
         "paper_loads": a,
         "strain_sweep": b,
-        "coupled_reextract_with_strain_rate_1e-3": coupled_strained,
+        "coupled_strained": c,
         "figures": made,
         "smoke": bool(args.smoke),
         "wall_s": time.perf_counter() - t0,
