@@ -48,10 +48,6 @@ html_theme = "alabaster"
 html_theme_options = {"page_width": "1180px", "sidebar_width": "240px"}
 suppress_warnings = ["myst.header"]
 
-#: Pages named in the index toctree that are still being written: while one does not exist, its
-#: toctree line is dropped when Sphinx reads index.md (logged), instead of failing the build.
-PAGES_IN_PROGRESS = ("cases", "cases_more", "verification", "stability", "speed_accuracy")
-
 #: Pages whose ``>>>`` examples are run at build time (and by tests/test_docs.py).
 DOCTEST_PAGES = ("user_guide.md",)
 DOCTEST_FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
@@ -92,19 +88,6 @@ def cli_reference_markdown() -> str:
             del os.environ["COLUMNS"]
         else:
             os.environ["COLUMNS"] = old
-
-
-def _drop_missing_pages(app, docname, source):
-    if docname != "index":
-        return
-    from sphinx.util import logging
-
-    lines = source[0].split("\n")
-    for name in PAGES_IN_PROGRESS:
-        if not (HERE / f"{name}.md").exists() and name in lines:
-            lines.remove(name)
-            logging.getLogger(__name__).info("index.md: %s.md not written yet, left out of the toctree", name)
-    source[0] = "\n".join(lines)
 
 
 def _fill_cli_reference(app, docname, source):
@@ -148,6 +131,5 @@ def _run_doctests(app):
 def setup(app):
     """Register the CLI-reference generator and the build-time doctests."""
     app.connect("source-read", _fill_cli_reference)
-    app.connect("source-read", _drop_missing_pages)
     app.connect("builder-inited", _run_doctests)
     return {"parallel_read_safe": True}
