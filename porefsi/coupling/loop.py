@@ -235,7 +235,9 @@ class CoupledRun:
             t1 = min(self.t_end, (self.step_index + 1) * self.dt)
             dt = t1 - t0
             secs = dict.fromkeys(("fluid", "interface", "solid", "update"), 0.0)
-            P0 = _pressure(self.sim.state)
+            # the start-of-step load is the one the solid carried at t0: the pressures of the
+            # network and interface of t0, even when a re-extraction below changes the topology
+            F0 = self.interface.nodal_forces(_pressure(self.sim.state))
             sim_start = self.sim
             U_start = self.model.expand(self.u, t0)
             U_iter = None
@@ -253,12 +255,11 @@ class CoupledRun:
                 sim = sim_start if n_max == 1 else sim_start.with_network(self.network)
                 sim = self._carry(sim, net_k, self.labels, lab_k)
                 lab_sim = lab_k
-                pressures = {t0: P0}
-                for s in sorted(set(self.load_times(t0, dt)) | {t1}):
-                    pressures[s] = _pressure(sim.advance_to(s))
+                later = sorted((set(self.load_times(t0, dt)) | {t1}) - {t0})
+                pressures = {s: _pressure(sim.advance_to(s)) for s in later}
                 secs["fluid"] += time.perf_counter() - tt
                 tt = time.perf_counter()
-                forces = {s: itf_k.nodal_forces(P) for s, P in pressures.items()}
+                forces = {t0: F0} | {s: itf_k.nodal_forces(P) for s, P in pressures.items()}
                 F1 = forces[t1]
                 secs["interface"] += time.perf_counter() - tt
                 tt = time.perf_counter()
