@@ -47,6 +47,9 @@ def test_smoke_run_writes_every_output(finished):
     sw = np.array([float(r["sw"]) for r in rows])
     assert np.all(np.diff(sw) < 0) and s["mass_balance_error"] < 1e-12
     assert s["max_displacement_m"] > 0 and s["max_von_mises_Pa"] > 0
+    # set-up and per-step stages are reported apart (the interface is built once, used every step)
+    stages = s["seconds_by_stage"]
+    assert {"extraction", "mesh", "interface_build", "interface", "fluid", "solid"} <= set(stages)
 
 
 def test_resume_gives_the_uninterrupted_result(finished, tmp_path):

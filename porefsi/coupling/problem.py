@@ -51,7 +51,8 @@ class CoupledProblem:
         The solid with the paper's loading frame along ``case.solid.load_axis``.
     fluids : Fluids
     seconds : dict
-        Wall time of each set-up stage, s.
+        Wall time of each set-up stage, s (``image``, ``extraction``, ``mesh``, ``interface_build``;
+        distinct from the per-step stage names of :class:`~porefsi.coupling.loop.CoupledRun`).
     """
 
     case: Case
@@ -160,5 +161,5 @@ def build_problem(case: Case) -> CoupledProblem:
 
     t = time.perf_counter()
     itf = build_interface(case, ex.network, ex.labels, mres.mesh, img.voxel_size, img.origin)
-    secs["interface"] = time.perf_counter() - t
+    secs["interface_build"] = time.perf_counter() - t
     return CoupledProblem(case, img, ex, mres, itf, model, fluids_from_case(case), secs)
