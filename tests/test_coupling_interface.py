@@ -1,5 +1,7 @@
 """Pore-pressure -> nodal-force operators: kernels vs twins, load balance, invariances."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -136,6 +138,9 @@ def test_traction_closed_cavity_zero_resultant_and_projected_area(rng):
     P = 2.5e4
     f = itf.nodal_forces([P])
     assert itf.load_balance_error([P]) < 1e-14
+    # closed cavity: the pressure load has no resultant, and the interface knows it
+    assert np.linalg.norm(f.sum(axis=0)) < 1e-13 * P * area.sum()
+    assert np.linalg.norm(itf.wall_vector) < 1e-13 * area.sum()
     # The cavity pushes its +x wall towards +x with force P * (wall area).
     on_xhi = np.isclose(p[:, 0], hi) & np.all((p[:, 1:] >= lo - 1e-12) & (p[:, 1:] <= hi + 1e-12), axis=1)
     face = np.isclose(p[cav].mean(axis=1)[:, 0], hi)
@@ -144,6 +149,27 @@ def test_traction_closed_cavity_zero_resultant_and_projected_area(rng):
     fx = f[nodes, 0].sum()
     # Edge/corner nodes are shared with neighbouring walls, whose loads have no x component.
     np.testing.assert_allclose(fx, P * (hi - lo) ** 2, rtol=1e-12)
+
+
+def test_traction_open_pore_resultant_and_load_balance():
+    """A pore open on one side (its +x wall is a throat opening, not solid) pushes the solid
+    towards -x with P * (opening area); the load-balance check compares each pore's assembled
+    resultant with that facet integral and stays at round-off."""
+    p, t, cav, lo, hi = _block_with_cavity()
+    open_x = np.isclose(p[cav].mean(axis=1)[:, 0], hi)
+    fp = np.where(open_x, -1, 0)
+    itf = traction_interface(p, t, cav, fp, 1)
+    P = 2.5e4
+    np.testing.assert_allclose(itf.nodal_forces([P]).sum(axis=0), [-P * (hi - lo) ** 2, 0, 0],
+                               atol=1e-12 * P)
+    np.testing.assert_allclose(itf.wall_vector[0], [-(hi - lo) ** 2, 0, 0], atol=1e-14)
+    assert itf.load_balance_error([P]) < 1e-14
+    # an assembly defect (one nodal load component doubled) is caught
+    bad = itf.operator.tolil()
+    row = int(np.flatnonzero(bad[:, 0].toarray().ravel())[0])
+    bad[row, 0] = 2 * bad[row, 0]
+    broken = dataclasses.replace(itf, operator=bad.tocsr())
+    assert broken.load_balance_error([P]) > 1e-3
 
 
 def test_facet_pores_from_labels_walks_into_the_pore():

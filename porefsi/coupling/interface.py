@@ -59,6 +59,11 @@ class Interface:
     handed_area : ndarray, shape (Np,)
         ``hull``: per pore, the force magnitude per unit pressure the operator hands to nodes, m²
         (equal to ``wall_area`` for every loaded pore); ``traction``: the facet area.
+    wall_vector : ndarray, shape (Np, 3) or None
+        ``traction``: per pore, the resultant of the wall traction per unit pressure,
+        ``-sum_e A_e n_e`` over its wall facets, m² (zero for a closed cavity; a pore open to a
+        throat or a box face pushes the solid away from the opening); computed from the facets,
+        independently of the operator.
     """
 
     operator: sp.csr_matrix
@@ -68,6 +73,7 @@ class Interface:
     n_unloaded: int
     seconds: float
     handed_area: np.ndarray | None = None
+    wall_vector: np.ndarray | None = None
 
     def __post_init__(self):
         if self.handed_area is None:
@@ -94,8 +100,10 @@ class Interface:
         """Relative mismatch between the load handed over and the load the pores carry.
 
         ``hull``: ``|sum_k |f_k| - sum_i P_i A_i| / sum_i P_i A_i`` (force magnitudes).
-        ``traction``: ``|sum_k f_k| / sum_i |P_i| A_i`` (resultant of a closed-cavity load).
-        Zero pressures give 0.
+        ``traction``: ``sum_i |P_i| |R_i - w_i| / sum_i |P_i| A_i``, with ``R_i`` the resultant of
+        the nodal forces the operator assigns to pore ``i`` per unit pressure and ``w_i`` the
+        exact wall-traction resultant (:attr:`wall_vector`); without ``wall_vector`` the resultant
+        of the whole load (a closed-cavity check). Zero pressures give 0.
         """
         p = np.asarray(pressure, dtype=float)
         f = self.nodal_forces(p)
@@ -104,7 +112,11 @@ class Interface:
             return 0.0
         if self.method == "hull":
             return abs(float(np.sum(np.abs(p) * self.handed_area)) - ref) / ref
-        return float(np.linalg.norm(f.sum(axis=0))) / ref
+        if self.wall_vector is None:
+            return float(np.linalg.norm(f.sum(axis=0))) / ref
+        op = self.operator.tocsc()
+        res = np.stack([np.asarray(op[k::3].sum(axis=0)).ravel() for k in range(3)], axis=1)  # (Np, 3)
+        return float(np.sum(np.abs(p) * np.linalg.norm(res - self.wall_vector, axis=1))) / ref
 
 
 def sphere_test_points(n: int, rng: np.random.Generator) -> np.ndarray:
@@ -448,7 +460,8 @@ def traction_interface(points, tets, facets, facet_pore, n_pores: int) -> Interf
     n_nodes = np.asarray(points).shape[0]
     T = _assemble(rows, cols, vals, (3 * n_nodes, n_pores))
     wall = np.bincount(pu, weights=area, minlength=n_pores)
+    vec = np.stack([np.bincount(pu, weights=-area * nrm[:, k], minlength=n_pores) for k in range(3)], axis=1)
     order = np.argsort(pu, kind="stable")
     ptr = np.searchsorted(pu[order], np.arange(n_pores + 1))
     nodes = tuple(np.unique(fu[order[ptr[i]:ptr[i + 1]]]) for i in range(n_pores))
-    return Interface(T, "traction", wall, nodes, 0, time.perf_counter() - t0)
+    return Interface(T, "traction", wall, nodes, 0, time.perf_counter() - t0, wall_vector=vec)
