@@ -139,19 +139,20 @@ class CoupledRun:
         """One solid step; ``forces`` maps each of :meth:`load_times` to nodal forces (Nn, 3)."""
         cc = self.problem.case.coupling
         if cc.integrator == "static":
-            u1 = self._static_solve(self.model.with_nodal_forces(forces[t0 + dt]), t0 + dt, u)
+            u1 = self._static_solve(self.model.with_nodal_forces(forces[t0 + dt]), t0 + dt, u, t_prev=t0)
             return u1, (u1 - u) / dt
         st = self._stepper_for(dt)
         loads = tuple(self.model.with_nodal_forces(forces[s]).external_force(s) for s in st.load_times(t0))
         u1, v1, _ = st.step(u, v, t0, loads=loads)
         return u1, v1
 
-    def _static_solve(self, model, t: float, u0: np.ndarray, rtol: float = 1e-8, max_iter: int = 30) -> np.ndarray:
+    def _static_solve(self, model, t: float, u0: np.ndarray, t_prev: float | None = None, rtol: float = 1e-8,
+                      max_iter: int = 30) -> np.ndarray:
         """Quasi-static equilibrium at ``t`` by modified Newton.
 
         The tangent is factorised once and reused across exchange steps (pore-pressure strains are
         ~1e-7, so it barely changes); it is refreshed when the iteration stops contracting, and a
-        full Newton solve is the fallback.
+        full Newton solve from ``(u0, t_prev)`` is the fallback.
         """
         u = np.array(u0, dtype=float)
         fext = model.external_force(t)
@@ -171,7 +172,7 @@ class CoupledRun:
                     break
                 prev = nr
                 x = x - self._static_lu(r)
-        u1, _ = solve_static(model, t, u0=u, rtol=rtol)
+        u1, _ = solve_static(model, t, u0=u, t_prev=t_prev, rtol=rtol)
         self._static_lu = None
         return u1
 

@@ -80,10 +80,22 @@ def _stress_moduli(kind, lam, mu, H, F, P, A, want_A):
         if J <= 0.0:
             return J
         Fi = np.linalg.inv(F)
-        lnJ = np.log(J)
+        # ln J = log1p(det(I + H) - 1) and F - F^-T = H + (F^-1 H)^T: no cancellation at small strain
+        trH = H[0, 0] + H[1, 1] + H[2, 2]
+        hh = 0.0
+        for a in range(3):
+            for b in range(3):
+                hh += H[a, b] * H[b, a]
+        detH = (H[0, 0] * (H[1, 1] * H[2, 2] - H[1, 2] * H[2, 1])
+                - H[0, 1] * (H[1, 0] * H[2, 2] - H[1, 2] * H[2, 0])
+                + H[0, 2] * (H[1, 0] * H[2, 1] - H[1, 1] * H[2, 0]))
+        lnJ = np.log1p(trH + 0.5 * (trH * trH - hh) + detH)
         for i in range(3):
             for b in range(3):
-                P[i, b] = mu * (F[i, b] - Fi[b, i]) + lam * lnJ * Fi[b, i]
+                s = 0.0
+                for m in range(3):
+                    s += Fi[b, m] * H[m, i]
+                P[i, b] = mu * (H[i, b] + s) + lam * lnJ * Fi[b, i]
         if want_A:
             c = mu - lam * lnJ
             for i in range(3):

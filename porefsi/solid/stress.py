@@ -36,13 +36,13 @@ def element_cauchy(model, u: np.ndarray, t: float) -> np.ndarray:
         p1 = getattr(model, "_p1", None)  # the fast path's assembler keeps the gradients
         dN = p1.dN if p1 is not None else p1_gradients(model.mesh)[0]
         ue = full.reshape(-1, 3)[model.mesh.tets]  # (Ne, 4, 3)
-        F = np.eye(3)[None] + np.matmul(ue.transpose(0, 2, 1), dN)  # F_iJ = delta_iJ + sum_a u_ai dN_aJ
-        F = np.moveaxis(F, 0, -1)  # (3, 3, Ne)
+        H = np.moveaxis(np.matmul(ue.transpose(0, 2, 1), dN), 0, -1)  # H_iJ = sum_a u_ai dN_aJ, (3, 3, Ne)
     else:
         centroid = (np.full((3, 1), 0.25), np.array([1.0 / 6.0]))
         cb = Basis(feb.basis.mesh, feb.basis.elem, quadrature=centroid)
-        F = (np.eye(3)[:, :, None, None] + cb.interpolate(full).grad)[..., 0]
-    sigma = model.material.cauchy(F)
+        H = np.asarray(cb.interpolate(full).grad)[..., 0]
+    F = np.eye(3)[:, :, None] + H
+    sigma = model.material.cauchy(F, H)
     return np.ascontiguousarray(np.moveaxis(sigma, -1, 0))
 
 

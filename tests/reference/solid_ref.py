@@ -28,8 +28,9 @@ def assemble_p1_ref(points, tets, u, material):
     K = np.zeros((n, n))
     dN, vol = p1_gradients_ref(points, tets)
     for e, tet in enumerate(tets):
-        F = np.eye(3) + u[tet].T @ dN[e]  # F_iJ = delta + sum_a u_ai dN_aJ
-        P = material.first_pk(F[:, :, None])[:, :, 0]
+        H = u[tet].T @ dN[e]  # H_iJ = sum_a u_ai dN_aJ
+        F = np.eye(3) + H
+        P = material.first_pk(F[:, :, None], H[:, :, None])[:, :, 0]
         A = material.moduli(F[:, :, None])[..., 0]
         dofs = (3 * tet[:, None] + np.arange(3)).ravel()
         fe = vol[e] * (dN[e] @ P.T)  # (4, 3): fe[a, i] = sum_J P_iJ dN_aJ
