@@ -8,6 +8,7 @@ from porefsi.coupling.update import (
     geometric_update,
     mean_size_change,
     pore_affine_maps,
+    update_nodes,
 )
 from porefsi.errors import InputError
 from porefsi.image import VoxelImage
@@ -120,3 +121,27 @@ def test_mean_size_change_is_eq_3_3():
     net = _net()
     bigger = net.replace(pore_radius=net.pore_radius * 1.02)
     assert mean_size_change(net, bigger) == pytest.approx(0.02, rel=1e-12)
+
+
+def test_pores_without_wall_nodes_take_the_surrounding_field(rng):
+    """A pore smaller than a mesh cell has < 4 wall nodes (here: 2, and none): its map comes from
+    the mesh nodes around it, so an affine field is still carried exactly (it used to be a pure
+    translation: radius and volume unchanged)."""
+    net = _net()
+    x, nodes = _wall(net, rng)
+    g = np.arange(0.0, 31.0, 5.0) * 1e-6  # a 5 um grid of mesh nodes over the domain
+    grid = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+    pts = np.vstack([x, grid])
+    nodes = [nodes[0], nodes[1][:2], np.array([], np.int64)]
+    un = update_nodes(net.pore_coords, net.pore_radius, nodes, pts, spacing=5e-6)
+    np.testing.assert_array_equal(un[0], nodes[0])  # enough wall nodes: kept as they are
+    assert len(un[1]) >= 8 and len(un[2]) >= 8
+    G = 1e-3 * rng.standard_normal((3, 3))
+    new = geometric_update(net, un, pts, pts @ G.T)
+    J = np.linalg.det(np.eye(3) + G)
+    np.testing.assert_allclose(new.pore_volume, J * net.pore_volume, rtol=1e-10)
+    np.testing.assert_allclose(new.pore_coords, net.pore_coords @ (np.eye(3) + G).T, rtol=1e-12)
+    old = geometric_update(net, nodes, pts, pts @ G.T)  # wall nodes alone
+    np.testing.assert_array_equal(old.pore_volume[1:], net.pore_volume[1:])
+    with pytest.raises(InputError, match="spacing"):
+        update_nodes(net.pore_coords, net.pore_radius, nodes, pts, spacing=0.0)

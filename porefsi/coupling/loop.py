@@ -27,7 +27,7 @@ import numpy as np
 
 from porefsi.coupling.interface import Interface
 from porefsi.coupling.problem import CoupledProblem, build_interface
-from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change
+from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change, update_nodes
 from porefsi.errors import ConvergenceError, NetworkError
 from porefsi.flow.drainage import DrainageSimulator
 from porefsi.flow.permeability import absolute_permeability
@@ -118,6 +118,7 @@ class CoupledRun:
         self.v = np.zeros(self.model.n_dofs)
         self._stepper = None
         self._static_lu = None
+        self._update_nodes = None  # per-pore nodes of the geometric update (built on first use)
         self.seconds = dict.fromkeys(("fluid", "interface", "solid", "update", "stress", "permeability"), 0.0)
         self.precoupling_history: list[float] = []
 
@@ -184,7 +185,10 @@ class CoupledRun:
         if mode == "none":
             return self.network, self.interface, self.labels, None
         if mode == "geometric":
-            return geometric_update(p.network, self.interface.pore_nodes, p.mesh.points, U), self.interface, \
+            if self._update_nodes is None:
+                self._update_nodes = update_nodes(p.network.pore_coords, p.network.pore_radius,
+                                                  self.interface.pore_nodes, p.mesh.points, p.node_spacing)
+            return geometric_update(p.network, self._update_nodes, p.mesh.points, U), self.interface, \
                 self.labels, None
         img = deformed_image(p.image, p.mesh.points, U, p.node_spacing)
         ex = extract_network(percolating_cluster(img, p.case.image.axis).image)

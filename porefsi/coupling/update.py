@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import VoxelImage
@@ -24,6 +25,7 @@ from porefsi.network.network import Network
 
 __all__ = [
     "pore_affine_maps",
+    "update_nodes",
     "geometric_update",
     "displacement_on_grid",
     "deformed_image",
@@ -71,6 +73,60 @@ def pore_affine_maps(centres, pore_nodes, points, u):
     return t, F
 
 
+def _affine_ok(d: np.ndarray) -> bool:
+    """Whether offsets ``d`` (n, 3) determine an affine map (>= 4 points, not near-coplanar)."""
+    if len(d) < 4:
+        return False
+    return bool(np.linalg.cond(np.hstack([np.ones((len(d), 1)), d])) <= 1e8)
+
+
+def update_nodes(centres, radii, pore_nodes, points, spacing: float, k_min: int = 8) -> tuple:
+    """Per pore, the FE nodes whose displacement defines the pore's affine map.
+
+    A pore's own wall nodes when they determine an affine map (at least 4, not near-coplanar);
+    otherwise, typically a pore smaller than a mesh cell, the mesh nodes within ``R_i + spacing``
+    of its centre, and at least the ``k_min`` nearest: the local affine fit of the solid's
+    displacement field around the pore (exact for affine fields, like the wall-node fit).
+
+    Parameters
+    ----------
+    centres : ndarray, shape (Np, 3)
+        Pore centres, m.
+    radii : ndarray, shape (Np,)
+        Pore radii, m.
+    pore_nodes : sequence of ndarray of int
+        Wall nodes of each pore (e.g. ``Interface.pore_nodes``).
+    points : ndarray, shape (Nn, 3)
+        Reference node coordinates, m.
+    spacing : float
+        Node spacing of the mesh, m.
+
+    Returns
+    -------
+    tuple of ndarray of int
+        One node set per pore.
+    """
+    c = np.asarray(centres, float)
+    x = np.asarray(points, float)
+    if len(pore_nodes) != len(c):
+        raise InputError(f"pore_nodes has {len(pore_nodes)} entries for {len(c)} pores")
+    if not spacing > 0:
+        raise InputError(f"node spacing must be positive (m), got {spacing!r}")
+    tree = None
+    out = []
+    for i in range(len(c)):
+        nodes = np.asarray(pore_nodes[i], np.int64)
+        if _affine_ok(x[nodes] - c[i]):
+            out.append(nodes)
+            continue
+        tree = cKDTree(x) if tree is None else tree
+        ball = np.asarray(tree.query_ball_point(c[i], float(radii[i]) + spacing), np.int64)
+        if ball.size < k_min:
+            ball = np.asarray(tree.query(c[i], k=min(k_min, len(x)))[1], np.int64)
+        out.append(np.unique(np.concatenate([nodes, ball])))
+    return tuple(out)
+
+
 def geometric_update(net: Network, pore_nodes, points, u) -> Network:
     """Network carried by the solid's displacement (sub-voxel, same topology).
 
@@ -79,7 +135,8 @@ def geometric_update(net: Network, pore_nodes, points, u) -> Network:
     net : Network
         Network in the reference (undeformed) configuration.
     pore_nodes : sequence of ndarray of int
-        Wall nodes of each pore (e.g. ``Interface.pore_nodes``).
+        Nodes that carry each pore (:func:`update_nodes`; the wall nodes of
+        ``Interface.pore_nodes`` alone leave pores without 4 of them merely translated).
     points : ndarray, shape (Nn, 3)
         Reference node coordinates, m.
     u : ndarray, shape (Nn, 3)
