@@ -130,10 +130,15 @@ def test_subiterations_converge_in_weak_coupling():
     result equals the explicitly staggered one to that tolerance."""
     explicit = [r.row for r in CoupledRun(build_problem(_small(drainage={"t_end": 2.0}))).steps()]
     case = _small(drainage={"t_end": 2.0}, coupling={"subiterations": 6, "subiteration_tol": 1e-9})
-    implicit = [r.row for r in CoupledRun(build_problem(case)).steps()]
-    for a, b in zip(explicit, implicit, strict=True):
+    recs = list(CoupledRun(build_problem(case)).steps())
+    for a, rec in zip(explicit, recs, strict=True):
+        b = rec.row
         assert 2 <= b["subiterations"] <= 6 and b["coupling_residual"] < 1e-9
         np.testing.assert_allclose(b["max_displacement_m"], a["max_displacement_m"], rtol=1e-6)
+        # the history behind the row: one residual and one relaxation factor per sub-iteration
+        assert len(rec.residual_history) == len(rec.relaxation_history) == b["subiterations"]
+        assert rec.residual_history[-1] == b["coupling_residual"] and rec.relaxation_history[0] == 1.0
+        assert rec.precoupling_history == ()
 
 
 def test_failure_mid_run_keeps_checkpoint_and_outputs(tmp_path, monkeypatch):
@@ -186,5 +191,6 @@ def test_precoupling_iterates_across_a_topology_change():
     changed = []
     for r in run.steps():
         changed.append(r.network.n_pores != n_prev and r.row["precoupling_iterations"] >= 2)
+        assert len(r.precoupling_history) == r.row["precoupling_iterations"]
         n_prev = r.network.n_pores
     assert any(changed)

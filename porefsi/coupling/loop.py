@@ -74,6 +74,13 @@ class ExchangeRecord:
         The time-series row (:data:`TIMESERIES_COLUMNS`).
     seconds : dict
         Wall time of the step by stage: fluid, interface, solid, update, outputs, s.
+    residual_history : tuple of float
+        Fluid-solid sub-iterations: relative displacement change ``|r_k| / |U|`` of each (empty
+        without sub-iterations).
+    relaxation_history : tuple of float
+        The relaxation factor ``omega_k`` used after each sub-iteration (Aitken or 1).
+    precoupling_history : tuple of float
+        Pre-coupling re-extractions: ``E_a`` (paper eq. 3.3) after each (empty unless re-extracting).
     """
 
     step: int
@@ -85,6 +92,9 @@ class ExchangeRecord:
     nodal_force: np.ndarray
     row: dict
     seconds: dict
+    residual_history: tuple = ()
+    relaxation_history: tuple = ()
+    precoupling_history: tuple = ()
 
 
 def _pressure(state: FlowState) -> np.ndarray:
@@ -247,7 +257,8 @@ class CoupledRun:
             U_start = self.model.expand(self.u, t0)
             U_iter = None
             omega, r_prev = 1.0, None
-            res_hist = []
+            res_hist: list[float] = []
+            omega_hist: list[float] = []
             net_k, itf_k, lab_k, ea = self.network, self.interface, self.labels, None
             reextract = self.problem.case.network.update == "reextract"
             nc = self.problem.case.network
@@ -280,6 +291,7 @@ class CoupledRun:
                         omega = -omega * float(np.vdot(r_prev, dr)) / den if den > 0 else omega
                     res_hist.append(float(np.linalg.norm(r)) / max(float(np.linalg.norm(U1)), 1e-300))
                     U_iter, r_prev = base + omega * r, r
+                    omega_hist.append(float(omega))
                     U_use = U_iter
                 else:
                     U_use = U1
@@ -309,6 +321,8 @@ class CoupledRun:
             self.step_index += 1
             rec = self._record(self.sim.state, U1, F1, secs, self.step_index, time.perf_counter() - t_wall,
                                (n_iter, res_hist[-1] if res_hist else 0.0, ea, len(ea_hist)))
+            rec = dataclasses.replace(rec, residual_history=tuple(res_hist), relaxation_history=tuple(omega_hist),
+                                      precoupling_history=tuple(ea_hist))
             for key, val in rec.seconds.items():
                 self.seconds[key] = self.seconds.get(key, 0.0) + val
             yield rec
