@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from porefsi.case.config import case_to_dict, load_case, smoke_case
+from porefsi.case.config import Case, case_to_dict, load_case, smoke_case
 
 CASES = Path(__file__).resolve().parent.parent / "cases"
 CASE_FILES = sorted(CASES.glob("*/case.toml"))
@@ -23,9 +23,10 @@ PAPER_PHYSICS = {
     ("drainage", "rate"): 1.25e-13, ("drainage", "t_end"): 20.0, ("solid", "E"): 20.0e9, ("solid", "nu"): 0.28,
     ("fluids", "mu_w"): 1.0e-3, ("fluids", "mu_n"): 1.0e-2, ("fluids", "theta_deg"): 0.0,
 }
-# The studies vary only fidelity knobs (and the swept parameter) around the drainage case.
+# The studies vary only fidelity knobs (and the swept parameter) around the drainage case
+# (test_points, tolerance and flow_rates use the paper's hull interface, their subject).
 FIDELITY_KEYS = {("solid", "coarsen"), ("coupling", "exchange_dt"), ("coupling", "integrator"),
-                 ("output", "snapshot_times"),
+                 ("output", "snapshot_times"), ("interface", "method"),
                  ("interface", "tolerance"), ("interface", "n_test_points")}
 
 
@@ -63,7 +64,13 @@ def test_drainage_case_is_the_paper_setup():
     for key, val in PAPER_PHYSICS.items():
         assert flat[key] == pytest.approx(val), key
     assert flat[("output", "snapshot_times")] == [1.0, 3.0, 5.0, 15.0]  # paper figure 7
-    assert flat[("interface", "method")] == "hull" and flat[("interface", "n_test_points")] == 800
+
+
+def test_drainage_case_is_the_default_case():
+    """cases/drainage is ``Case()`` with its keys written out (the README's "default coupled run")."""
+    flat = _flat(case_to_dict(load_case(CASES / "drainage" / "case.toml")))
+    default = _flat(case_to_dict(Case()))
+    assert {k for k in default if default[k] != flat[k]} == set()
 
 
 @pytest.mark.parametrize("name", ["test_points", "tolerance", "flow_rates"])
