@@ -32,7 +32,7 @@ import numpy as np
 from porefsi.case.config import load_case, smoke_case
 from porefsi.case.run import run_case
 from porefsi.coupling.problem import build_problem
-from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change
+from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change, update_nodes
 from porefsi.flow.permeability import absolute_permeability
 from porefsi.image.ops import percolating_cluster
 from porefsi.network.extract import extract_network
@@ -94,6 +94,8 @@ def part_b(case, strains) -> dict:
                            "n_pores_reextract", "n_throats_reextract", "mean_r_reextract", "mean_r_geometric",
                            "k_reextract", "k_geometric", "top_displacement_voxels")}
     u = None
+    # the nodes that carry each pore, as in the coupled loop (wall nodes, or the surrounding mesh nodes)
+    nodes = update_nodes(net0.pore_coords, net0.pore_radius, p.interface.pore_nodes, p.mesh.points, p.node_spacing)
     prev_net, t_prev = net0, 0.0
     psd = {}
     for s in strains:
@@ -107,7 +109,7 @@ def part_b(case, strains) -> dict:
         img = deformed_image(p.image, p.mesh.points, U, p.node_spacing)
         re1 = _extract(img, axis)          # pre-coupling iteration 1
         re2 = _extract(img, axis)          # iteration 2: the same deformed image, extracted again
-        geo = geometric_update(net0, p.interface.pore_nodes, p.mesh.points, U)
+        geo = geometric_update(net0, nodes, p.mesh.points, U)
         out["strain"].append(float(s))
         out["Ea_iter1"].append(mean_size_change(prev_net, re1))
         out["Ea_iter2"].append(mean_size_change(re1, re2))
