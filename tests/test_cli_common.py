@@ -99,3 +99,19 @@ def test_to_jsonable_and_emit(capsys):
     assert json.loads(capsys.readouterr().out) == to_jsonable(data)
     emit({"porosity": 0.188213541, "n": 3}, as_json=False)
     assert capsys.readouterr().out.splitlines() == ["porosity  0.188214", "n         3"]
+
+
+def test_output_into_a_closed_pipe_is_not_an_error(tmp_path):
+    """`porefsi ... --json | head -c 10`: the reader closes early; porefsi exits 0 without a traceback."""
+    import subprocess
+    import sys
+
+    from porefsi.network.convert import save_network
+    from porefsi.network.lattice import lattice_network
+
+    net = save_network(lattice_network((4, 3, 3), 4e-5, np.random.default_rng(0)), tmp_path / "net.npz")
+    proc = subprocess.Popen([sys.executable, "-m", "porefsi", "permeability", str(net), "--json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # nobody reads the summary
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 0 and "Traceback" not in err, err
