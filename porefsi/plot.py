@@ -121,7 +121,7 @@ def _pv():
 
 
 def render_network(coords, radii, conns, values, path: str | Path, *, label: str = "", clim=None,
-                   cmap: str = "coolwarm", window_size=(900, 700)) -> Path:
+                   cmap: str = "coolwarm", window_size=(900, 700), fade_above: float | None = None) -> Path:
     """Pores as spheres (true radius) and throats as lines, coloured by a per-pore value.
 
     Parameters
@@ -134,21 +134,36 @@ def render_network(coords, radii, conns, values, path: str | Path, *, label: str
     values : ndarray, shape (Np,)
         Colour per pore (e.g. wetting saturation with the default map: red = wetting (water),
         blue = non-wetting (oil), as in the paper's figure 5).
+    fade_above : float, optional
+        Draw pores whose value is above this threshold translucent (e.g. 0.999 for wetting
+        saturation), so the few invaded pores of an early drainage stand out in the cloud.
     """
     pv = _pv()
     c = np.asarray(coords, float) * 1e6
-    pts = pv.PolyData(c)
-    pts["radius"] = np.asarray(radii, float) * 1e6
-    pts[label or "value"] = np.asarray(values, float)
-    glyphs = pts.glyph(geom=pv.Sphere(radius=1.0, theta_resolution=12, phi_resolution=12), scale="radius",
-                       orient=False)
+    vals = np.asarray(values, float)
+    rad = np.asarray(radii, float) * 1e6
+    sphere = pv.Sphere(radius=1.0, theta_resolution=12, phi_resolution=12)
+    faded = np.zeros(len(vals), bool) if fade_above is None else vals > fade_above
+
+    def spheres(mask):
+        sub = pv.PolyData(c[mask])
+        sub["radius"] = rad[mask]
+        sub[label or "value"] = vals[mask]
+        return sub.glyph(geom=sphere, scale="radius", orient=False)
+
     conns = np.asarray(conns, np.int64)
     lines = pv.PolyData(c)
     if conns.size:
         lines.lines = np.hstack([np.full((len(conns), 1), 2), conns]).ravel()
     p = pv.Plotter(off_screen=True, window_size=window_size)
     p.add_mesh(lines, color="grey", line_width=1)
-    p.add_mesh(glyphs, scalars=label or "value", cmap=cmap, clim=clim, scalar_bar_args={"title": label})
+    if faded.any():
+        clim = clim if clim is not None else (float(np.nanmin(vals)), float(np.nanmax(vals)))
+        p.add_mesh(spheres(faded), scalars=label or "value", cmap=cmap, clim=clim, opacity=0.15,
+                   show_scalar_bar=faded.all(), scalar_bar_args={"title": label})
+    if not faded.all():
+        p.add_mesh(spheres(~faded), scalars=label or "value", cmap=cmap, clim=clim,
+                   scalar_bar_args={"title": label})
     p.show_bounds(xtitle="x (um)", ytitle="y (um)", ztitle="z (um)", font_size=10)
     p.camera_position = "iso"
     p.screenshot(str(path))

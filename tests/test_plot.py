@@ -29,6 +29,10 @@ def test_offscreen_renders(tmp_path):
     out = plot.render_network(c, np.full(10, 5e-6), [[0, 1], [1, 2]], rng.random(10), tmp_path / "n.png",
                               label="Sw", window_size=(320, 240))
     assert _png_size(out) == (320, 240)
+    for sw in (np.r_[np.zeros(3), np.ones(7)], np.ones(10)):  # some pores invaded / none yet
+        out = plot.render_network(c, np.full(10, 5e-6), [[0, 1]], sw, tmp_path / "f.png", label="Sw",
+                                  clim=(0, 1), window_size=(320, 240), fade_above=0.999)
+        assert _png_size(out) == (320, 240)
     pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]) * 1e-5
     out = plot.render_solid(pts, [[0, 1, 2, 3]], np.arange(4.0), tmp_path / "s.png", label="u",
                             displacement=pts, scale=0.1, window_size=(320, 240))

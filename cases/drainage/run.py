@@ -140,7 +140,8 @@ def main(argv=None) -> dict:
         s = snaps[t]
         tag = f"{t:g}".replace(".", "_")
         sat_png.append(plot.render_network(s["coords"], s["radius"], s["conns"], s["sw_field"],
-                                           tmp / f"sat_{tag}.png", label="Sw", clim=(0.0, 1.0), window_size=ws))
+                                           tmp / f"sat_{tag}.png", label="Sw", clim=(0.0, 1.0), window_size=ws,
+                                           fade_above=0.999))
         logu = np.log10(np.maximum(np.linalg.norm(s["u"], axis=1) * 1e9, 10.0 ** (top - 6)))
         disp_png.append(plot.render_solid(points, tets, logu, tmp / f"u_{tag}.png", label="log10 |u| nm", cut="y",
                                           clim=(top - 3.0, top), window_size=ws))

@@ -93,7 +93,8 @@ def _figures(out: Path, ts: dict, snapshots: list, run: CoupledRun, progress: bo
     for s in snapshots:
         tag = f"t{s['t']:07.3f}s".replace(".", "_")
         made.append(plot.render_network(s["coords"], s["radius"], net0.throat_conns, 1.0 - s["nw_saturation"],
-                                        fig / f"drainage_{tag}.png", label="wetting saturation", clim=(0, 1)))
+                                        fig / f"drainage_{tag}.png", label="wetting saturation", clim=(0, 1),
+                                        fade_above=0.999))
         # Colour scales stop at the 99th percentile: the extremes sit at a few nodes next to loaded pores.
         mag = np.linalg.norm(s["displacement"], axis=1) * 1e9
         made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, mag,
