@@ -9,8 +9,9 @@
    reference (a coarsen-c mesh has its nodes on the grid of c voxels: coarsen 4 and 6 share the
    multiples of 12 and 6 voxels with coarsen 3, coarsen 5 only the multiples of 15); (b) on every
    reference node, each run's field interpolated trilinearly from its own node grid (the same
-   points for every run, so rows compare). The reference is cached in ``reference/`` (reused while
-   its case is unchanged).
+   points for every run, so rows compare). The reference is cached in ``reference/`` with its case
+   TOML, time and code revision (reused while its case is unchanged; ``--no-cache`` recomputes and
+   overwrites it).
 2. Analytic set (``analytic.py``): Lamé cavity, Washburn, invasion-percolation limit, TDG order.
 
 Usage: python cases/verification/run.py [--smoke] [--out DIR] [--no-cache]
@@ -97,26 +98,57 @@ def run_coupled(case) -> dict:
             "max_u": float(np.linalg.norm(rec.displacement, axis=1).max()), "shape": p.image.shape}
 
 
-def reference(case, cache: Path | None) -> dict:
+def reference(case, cache: Path | None, refresh: bool = False) -> dict:
+    """The reference run: read from ``cache`` when it holds this exact case, else run it and write it.
+
+    ``refresh=True`` ignores the cached run and overwrites it (after a code change that the case TOML
+    cannot see).
+    """
     toml = case_to_toml(case)
-    if cache is not None and cache.is_file():
+    if cache is not None and cache.is_file() and not refresh:
         d = np.load(cache, allow_pickle=False)
         if str(d["case_toml"]) == toml:
             return {"grid": d["grid"].astype(np.int64), "u": d["u"], "t": float(d["t"]),
                     "n_nodes": int(d["n_nodes"]), "n_tets": int(d["n_tets"]), "wall_s": float(d["wall_s"]),
-                    "cpu_s": float(d["cpu_s"]), "max_u": float(d["max_u"]), "cached": True}
+                    "cpu_s": float(d["cpu_s"]), "max_u": float(d["max_u"]), "cached": True,
+                    "computed": str(d["computed"]) if "computed" in d else "unknown",
+                    "code": str(d["code"]) if "code" in d else "unknown"}
     ref = run_coupled(case)
+    ref["computed"] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    ref["code"] = _git_head()
     if cache is not None:
         cache.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(cache, grid=ref["grid"].astype(np.int16), u=ref["u"], t=ref["t"],
                             n_nodes=ref["n_nodes"], n_tets=ref["n_tets"], wall_s=ref["wall_s"], cpu_s=ref["cpu_s"],
-                            max_u=ref["max_u"], case_toml=np.array(toml))
+                            max_u=ref["max_u"], case_toml=np.array(toml), computed=np.array(ref["computed"]),
+                            code=np.array(ref["code"]))
     ref["cached"] = False
     return ref
 
 
+def _git_head() -> str:
+    """The checkout's commit (12 hex digits, '+dirty' with local changes), or 'unknown'."""
+    import subprocess
+
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=HERE, capture_output=True,
+                              text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "porefsi"], cwd=HERE.parent.parent,
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return head + ("+dirty" if dirty else "")
+
+
 def _ids(grid, n=1024):
     return (grid[:, 0] * n + grid[:, 1]) * n + grid[:, 2]
+
+
+def _coarsen(r: dict) -> int:
+    """A run's node spacing in voxels: its ``coarsen``, else the common divisor of its node grid."""
+    if "coarsen" in r:
+        return int(r["coarsen"])
+    return max(int(np.gcd.reduce(np.asarray(r["grid"], np.int64).ravel())), 1)
 
 
 def on_voxel_points(r: dict, grid_pts: np.ndarray) -> np.ndarray:
@@ -125,7 +157,7 @@ def on_voxel_points(r: dict, grid_pts: np.ndarray) -> np.ndarray:
     Exact at the run's own nodes; grid corners inside pores take the nearest node's value
     (:func:`~porefsi.coupling.update.displacement_on_grid`).
     """
-    c = r["coarsen"]
+    c = _coarsen(r)
     gshape = tuple(int(g) for g in r["grid"].max(axis=0) // c + 1)
     field = displacement_on_grid(r["grid"] / c, r["u"], 1.0, gshape)
     x = (np.asarray(grid_pts, float) / c).T
@@ -150,7 +182,7 @@ def compare(ref: dict, runs: dict, n_select: int = 12) -> dict:
                      "rel_error_shared": float(np.linalg.norm(d) / np.linalg.norm(ref["u"][ib])),
                      "rel_error_all_interp": float(np.linalg.norm(d_all) / ref_norm),
                      "max_u_ratio": r["max_u"] / ref["max_u"], "wall_s": r["wall_s"], "cpu_s": r["cpu_s"],
-                     "n_nodes": r["n_nodes"], "n_tets": r["n_tets"], "coarsen": r["coarsen"]}
+                     "n_nodes": r["n_nodes"], "n_tets": r["n_tets"], "coarsen": _coarsen(r)}
     cand = np.flatnonzero(np.all(ref["grid"] % SELECT_STRIDE == 0, axis=1))
     mag = np.linalg.norm(ref["u"][cand], axis=1)
     ib = cand[np.argsort(mag)[::-1][:n_select]]
@@ -273,7 +305,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--smoke", action="store_true", help="seconds-long version (coarse meshes, 2 steps)")
     ap.add_argument("--out", type=Path, default=None, help="output directory (default: this folder)")
-    ap.add_argument("--no-cache", action="store_true", help="recompute the high-fidelity reference")
+    ap.add_argument("--no-cache", action="store_true",
+                    help="recompute the high-fidelity reference and overwrite its cache")
     args = ap.parse_args(argv)
     out = args.out or (Path(tempfile.mkdtemp(prefix="porefsi-verification-")) if args.smoke else HERE)
     out.mkdir(parents=True, exist_ok=True)
@@ -282,11 +315,11 @@ def main(argv=None) -> int:
     if args.smoke:
         base = smoke_case(base)
         ref_spec, specs, t_end = SMOKE_REFERENCE, SMOKE_RUNS, base.drainage.t_end
-        cache = None if args.no_cache else out / "reference" / "smoke_reference.npz"
+        cache = out / "reference" / "smoke_reference.npz"
     else:
         ref_spec, specs, t_end = REFERENCE, RUNS, T_COMPARE
-        cache = None if args.no_cache else HERE / "reference" / "reference_c3_traction_static.npz"
-    ref = reference(make_case(base, ref_spec, t_end), cache)
+        cache = HERE / "reference" / "reference_c3_traction_static.npz"
+    ref = reference(make_case(base, ref_spec, t_end), cache, refresh=args.no_cache)
     runs = {s[0]: run_coupled(make_case(base, s, t_end)) for s in specs}
     cmp = compare(ref, runs)
     if args.smoke:
@@ -303,7 +336,8 @@ def main(argv=None) -> int:
                   "step T-3 for low flow rates and separate at higher rates (no numbers given)"},
         "t_compare_s": t_end,
         "reference": {"spec": list(ref_spec), "n_nodes": ref["n_nodes"], "n_tets": ref["n_tets"],
-                      "wall_s": ref["wall_s"], "cpu_s": ref["cpu_s"], "max_u_m": ref["max_u"], "cached": ref["cached"]},
+                      "wall_s": ref["wall_s"], "cpu_s": ref["cpu_s"], "max_u_m": ref["max_u"], "cached": ref["cached"],
+                      "computed": ref["computed"], "code": ref["code"]},
         "comparison": cmp,
         "lame": lame,
         "washburn": {k: v for k, v in wash.items() if k.startswith("max_")},
