@@ -134,11 +134,35 @@ class Engine:
         data[g.pos_ba[g.inner]] = off[g.inner]
         A = sp.csr_array((data, g.indices, g.pattern_indptr), shape=(n + 1, n + 1))
         old = self.P
-        P = self.solver.solve(A, rhs, x0=old)
+        P = self.solver.solve(A, rhs, x0=old, hint=lambda: self._hint(x))
         P[:n][self.trapped] = old[:n][self.trapped]
         self.P = P
         self.p_valid = True
         return cond, men, fa
+
+    def _hint(self, targets, n_pinned: int = 2):
+        """Rows likely to change soon, for the solver to prefetch (cost only, never the answer).
+
+        The pores being filled (``targets``) and the ``n_pinned`` pores behind the pinned menisci
+        of lowest threshold (the next invasions at low capillary number), with their neighbours:
+        their rows change when those pores become full.
+        """
+        g = self.g
+        fx = self._node_full()
+        fa, fb = fx[g.a], fx[g.b]
+        pin = np.flatnonzero((fa ^ fb) & g.inner & ~self.inv)
+        if pin.size:
+            xp = np.where(fa[pin], g.b[pin], g.a[pin])
+            ok = ~self.trapped[xp]
+            pin, xp = pin[ok], xp[ok]
+            if pin.size > n_pinned:
+                xp = xp[np.argpartition(g.thr[pin], n_pinned)[:n_pinned]]
+        t = np.unique(np.concatenate([targets, xp])) if pin.size else np.unique(targets)
+        if t.size == 0:
+            return t
+        nb = np.concatenate([g.nbr[g.indptr[v]:g.indptr[v + 1]] for v in t])
+        h = np.concatenate([t, nb])
+        return h[~self.trapped[h]]
 
     # -- events ----------------------------------------------------------------------------
     def open_edge(self, e: int):

@@ -11,7 +11,12 @@ Every event changes a few conductances, so the solver reuses work across events:
   .. math:: A^{-1} b = y - W D (I + W_{SS} D)^{-1} y_S,\qquad y = A_0^{-1} b,\quad W = A_0^{-1} E_S,
 
   with the columns of ``W`` cached per node (one base solve each, computed once per base). When
-  ``|S|`` exceeds ``max_rank`` the current matrix becomes the new base. Every solve is checked
+  ``|S|`` exceeds ``max_rank`` the current matrix becomes the new base. Columns are computed in
+  batches (one triangular solve with several right-hand sides costs far less per column than
+  single ones: 32-43 ms instead of 82 ms at 100k unknowns); with each batch that is needed anyway
+  go the columns of rows the engine expects to change soon (``hint``: the pores being filled and
+  the next pores to be invaded, with their neighbours), within a budget of unused slots so that
+  prefetching never forces an earlier refactorisation. Every solve is checked
   by its residual and refined once if needed; a residual that stays large triggers a fresh
   factorisation, so the answer is a direct solve's to round-off.
 * ``'direct'``: a fresh sparse LU per solve (cheapest for a few hundred unknowns).
@@ -73,6 +78,16 @@ class PressureSolver:
         self.n_setups = 0
         self.iterations = 0
         self.seconds_setup = 0.0
+        self.prefetch = True
+        self.n_columns = 0
+        self.n_column_batches = 0
+        self.n_prefetched = 0
+
+    def __setstate__(self, d):  # solvers pickled before the prefetch counters existed
+        d.setdefault("prefetch", True)
+        for k in ("n_columns", "n_column_batches", "n_prefetched"):
+            d.setdefault(k, 0)
+        self.__dict__.update(d)
 
     def __getstate__(self):  # factorisations are not picklable: drop them, rebuilt on demand
         d = self.__dict__.copy()
@@ -81,11 +96,19 @@ class PressureSolver:
         d["_base"] = None
         return d
 
-    def solve(self, A: sp.csr_array, b: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
-        """Return x with ``A x = b`` (A symmetric positive definite, CSR with a fixed pattern)."""
+    def solve(self, A: sp.csr_array, b: np.ndarray, x0: np.ndarray | None = None,
+              hint: np.ndarray | None = None) -> np.ndarray:
+        """Return x with ``A x = b`` (A symmetric positive definite, CSR with a fixed pattern).
+
+        ``hint`` (a callable returning node indices, called only when a batch of base columns is
+        computed anyway) names rows likely to change soon; the low-rank solver computes
+        their base columns in the same batched triangular solve as the columns it needs now
+        (a batch of k right-hand sides costs far less than k single solves). Hints change the
+        cost only, never the answer.
+        """
         self.n_solves += 1
         if self.method == "lowrank":
-            return self._solve_lowrank(A, b)
+            return self._solve_lowrank(A, b, hint)
         d = A.diagonal()
         s = 1.0 / np.sqrt(d)
         As = _scaled(A, s)
@@ -112,20 +135,41 @@ class PressureSolver:
     def _factor(self, A):
         t0 = time.perf_counter()
         s = 1.0 / np.sqrt(A.diagonal())
-        cap = self.max_rank + 64
+        budget = self.max_rank // 2 if self.prefetch else 0
+        cap = self.max_rank + 64 + budget
         # columns A0^-1 e_v are stored as *rows* of WT (cap, n): a combination of a few of them
         # gathers contiguous rows instead of multiplying the whole (n, cap) block
         self._base = dict(data=A.data.copy(), s=s, lu=_lu(_scaled(A, s)), rows=_rows(A),
                           col_of=np.full(A.shape[0], -1, dtype=np.int64), WT=np.empty((cap, A.shape[0])),
-                          ncols=0)
+                          ncols=0, n_pref=0, budget=budget, pref=np.zeros(A.shape[0], dtype=bool))
         self.n_setups += 1
         self.seconds_setup += time.perf_counter() - t0
 
-    def _columns(self, nodes):
-        """Cache ``A0^-1 e_v`` for the given nodes (one batched base solve for the missing ones)."""
+    def _columns(self, nodes, hint=None):
+        """Cache ``A0^-1 e_v`` for the given nodes (one batched base solve for the missing ones).
+
+        When some are missing, missing ``hint`` nodes join the same batch. Prefetched columns not
+        (yet) asked for occupy at most ``budget`` extra slots of the cache, so prefetching never
+        forces an earlier refactorisation.
+        """
         base = self._base
+        hit = nodes[base["pref"][nodes]]
+        base["pref"][hit] = False
+        base["n_pref"] -= hit.size
         new = nodes[base["col_of"][nodes] < 0]
+        room = base["budget"] - base["n_pref"]
+        if new.size and room > 0 and hint is not None:
+            h = np.asarray(hint(), dtype=np.int64)
+            extra = np.setdiff1d(h[base["col_of"][h] < 0], new)
+            if extra.size:
+                extra = extra[:room]
+                new = np.concatenate([new, extra])
+                base["pref"][extra] = True
+                base["n_pref"] += extra.size
+                self.n_prefetched += extra.size
         if new.size:
+            self.n_columns += new.size
+            self.n_column_batches += 1
             k = base["ncols"]
             E = np.zeros((base["WT"].shape[1], new.size))
             E[new, np.arange(new.size)] = 1.0
@@ -134,7 +178,7 @@ class PressureSolver:
             base["ncols"] = k + new.size
         return base["col_of"][nodes]
 
-    def _solve_lowrank(self, A, b):
+    def _solve_lowrank(self, A, b, hint=None):
         if self._base is None:
             self._factor(A)
         for _attempt in range(2):
@@ -148,7 +192,7 @@ class PressureSolver:
             if S.size > self.max_rank or np.count_nonzero(base["col_of"][T] < 0) > free:
                 self._factor(A)
                 continue
-            cT = self._columns(T)
+            cT = self._columns(T, hint)
             k = base["ncols"]
             WT = base["WT"][:k]
             # y = A0^-1 (s b) as a combination of cached columns (b is sparse): coefficients on T
