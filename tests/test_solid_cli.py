@@ -32,3 +32,17 @@ def test_solid_cli_bad_input(capsys):
     assert "Poisson ratio" in capsys.readouterr().err
     assert main(["solid", "--coarsen", "0"]) == 2
     assert "coarsen" in capsys.readouterr().err
+
+
+def test_solid_cli_slab_not_reaching_the_loaded_face(tmp_path, capsys):
+    """Solid in the bottom 3 of 8 layers: exit 2 naming the image box face without solid (it used
+    to exit 0 with E_eff = 25.5 GPa, the platen pressed on the slab's top surface)."""
+    ph = np.ones((6, 6, 8), np.uint8)
+    ph[:, :, :3] = 0
+    path = tmp_path / "slab.npy"
+    np.save(path, ph)
+    assert main(["solid", str(path), "--voxel-size", "1e-6", "--coarsen", "1", "--json"]) == 2
+    err = capsys.readouterr().err
+    assert "no solid reaches the zmax face of the image box" in err and "another axis" in err
+    assert main(["solid", str(path), "--voxel-size", "1e-6", "--coarsen", "1", "--axis", "x", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["effective_modulus_Pa"] > 0

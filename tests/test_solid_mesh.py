@@ -115,6 +115,7 @@ def test_points_in_image_frame_and_volume():
     assert np.allclose(m.points.max(axis=0), img.origin + np.array(solid.shape) * h)
     assert m.volume == pytest.approx(solid.sum() * h**3, rel=1e-12)
     assert r.removed_solid_fraction == 0.0
+    np.testing.assert_array_equal(m.box, [img.origin, img.origin + np.array(solid.shape) * h])
     # pore-wall area = faces of the 2x3x2 pore box = 2(6+4+6) voxel faces
     fa = m.points[m.facets_tagged("pore_wall")]
     area = 0.5 * np.linalg.norm(np.cross(fa[:, 1] - fa[:, 0], fa[:, 2] - fa[:, 0]), axis=1).sum()
@@ -186,6 +187,29 @@ def test_bad_inputs():
     floating[2, 2, 2] = True
     with pytest.raises(MeshError, match="floats"):
         mesh_solid(_image(floating))
+
+
+def test_small_image_coarsened_away_names_cause_and_fix():
+    """A 4^3 image, 37.5 % solid: with the CLI's default coarsen 5 one block covers it and is < 50 %
+    solid, so nothing is left; the error says why (block fraction vs threshold) and to lower coarsen."""
+    solid = np.zeros((4, 4, 4), dtype=bool)
+    solid[:, :, 0] = True
+    solid[:2, :, 1] = True  # 24 of 64 voxels, all on or joined to zmin
+    frac = solid.mean()
+    assert frac == 0.375
+    with pytest.raises(MeshError, match=rf"4x4x4-voxel image.*no 5\^3 block is at least 0.5 solid.*"
+                                        rf"most solid block is {frac:.3g}.*--coarsen 1"):
+        mesh_solid(_image(solid), coarsen=5)
+    assert mesh_solid(_image(solid), coarsen=1).mesh.n_tets == 5 * int(solid.sum())
+
+
+def test_box_must_contain_the_points():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    args = (pts, np.array([[0, 1, 2, 3]]), np.zeros((0, 3), int), np.zeros(0, np.int8))
+    np.testing.assert_array_equal(SolidMesh(*args).box, [[0, 0, 0], [1, 1, 1]])  # default: bounding box
+    np.testing.assert_array_equal(SolidMesh(*args, box=[[0, 0, 0], [2, 1, 1]]).box, [[0, 0, 0], [2, 1, 1]])
+    with pytest.raises(InputError, match="containing every point"):
+        SolidMesh(*args, box=[[0, 0, 0], [0.5, 1, 1]])
 
 
 def test_inverted_tet_rejected():

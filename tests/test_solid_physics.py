@@ -202,3 +202,68 @@ def test_inverting_load_step_raises_mesh_error():
         uniaxial_compression(mesh, MAT, strain=0.3)
     res = uniaxial_compression(mesh, MAT, strain=1e-3)
     assert res.newton[0].converged and res.newton[0].iterations <= 4
+
+
+def _layers_image(solid_layers, shape=(6, 6, 8), h=1e-6):
+    """VoxelImage with solid (0) in the z layers ``solid_layers``, pore (1) elsewhere."""
+    from porefsi.image.voxel_image import VoxelImage
+
+    ph = np.ones(shape, np.uint8)
+    ph[:, :, list(solid_layers)] = 0
+    return VoxelImage(ph, h)
+
+
+def test_load_frame_needs_solid_on_the_image_box_faces():
+    """Solid in the bottom 3 of 8 voxel layers: the image box's zmax face has no solid, so there is
+    no platen contact; the frame must not grab the slab's top (pore wall) instead (it used to, and
+    reported E_eff = 25.5 GPa). Two slabs, one on each face, with pore between: no load path."""
+    from porefsi.errors import MeshError
+    from porefsi.solid.mesh import mesh_solid
+
+    slab = mesh_solid(_layers_image(range(3)), coarsen=1).mesh
+    np.testing.assert_allclose(slab.box, [[0, 0, 0], [6e-6, 6e-6, 8e-6]])
+    assert slab.bounds[1, 2] == pytest.approx(3e-6)
+    with pytest.raises(MeshError, match=r"no solid reaches the zmax face of the image box.*\[0, 8e-06\]"):
+        uniaxial_compression(slab, MAT, strain=1e-3)
+    # the bare model too: a prescribed motion on a face without solid is an error, not a no-op ...
+    with pytest.raises(MeshError, match="no solid reaches the zmax face"):
+        SolidModel(slab, MAT, uniaxial_bcs("z", rate=-1e-9))
+    # ... while loading along x (solid on both x faces) works, the box area being 6 x 8 voxels
+    res = uniaxial_compression(slab, MAT, strain=1e-6, axis="x")
+    assert np.isfinite(res.effective_modulus) and res.effective_modulus > 0
+    apart = mesh_solid(_layers_image([0, 1, 2, 5, 6, 7]), coarsen=1).mesh
+    with pytest.raises(MeshError, match="no connected solid joins the zmin and zmax faces"):
+        uniaxial_compression(apart, MAT, strain=1e-3)
+
+
+def test_effective_modulus_uses_the_image_box_area():
+    """A 2 x 2-voxel column through a 6 x 6 x 8 image, nu = 0: the column is in uniaxial stress
+    sigma = E eps whatever the end conditions (no lateral expansion to restrain), so the apparent
+    modulus of the sample is E A_column / A_box = E / 9 (the old mesh-bounding-box area gave E).
+    The lateral rollers touch no solid and hold nothing."""
+    from porefsi.image.voxel_image import VoxelImage
+    from porefsi.solid.mesh import mesh_solid
+
+    ph = np.ones((6, 6, 8), np.uint8)
+    ph[2:4, 2:4, :] = 0
+    mesh = mesh_solid(VoxelImage(ph, 1e-6), coarsen=1).mesh
+    mat = StVenantKirchhoff(E=20e9, nu=0.0)
+    strain = 1e-7
+    res = uniaxial_compression(mesh, mat, strain=strain)
+    # SVK in uniaxial stress: P_zz = c E (c^2 - 1) / 2 = -E eps (1 - 3 eps / 2 + O(eps^2))
+    assert res.effective_modulus == pytest.approx(mat.E * (2 * 2) / (6 * 6), rel=3 * strain)
+    np.testing.assert_allclose(res.u[:, 2], -strain * mesh.points[:, 2], atol=1e-9 * strain * 8e-6)
+
+
+def test_p2_face_nodes_are_the_tagged_facets_nodes():
+    """P2: the Dirichlet nodes of a box face are the vertices and edge midpoints of its tagged
+    facets, which on a full box are exactly the Lagrange nodes on the face's plane."""
+    from porefsi.solid.bc import face_nodes
+
+    m = box_mesh((2, 3, 2), (1e-4, 2e-4, 1e-4))
+    model = SolidModel(m, MAT, [Fixed("zmin")], order=2)
+    for k, face in enumerate(("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")):
+        ax, side = divmod(k, 2)
+        plane = np.flatnonzero(np.isclose(model.dof_points[:, ax], m.box[side, ax], rtol=0, atol=1e-15))
+        np.testing.assert_array_equal(face_nodes(m, model.dof_points, face), plane)
+    assert len(model.constraints.dofs) == 3 * int(np.sum(np.isclose(model.dof_points[:, 2], 0.0)))

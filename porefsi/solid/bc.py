@@ -12,11 +12,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from porefsi.errors import InputError
+from porefsi.errors import InputError, MeshError
 from porefsi.image.voxel_image import axis_index
-from porefsi.solid.mesh import FACE_NAMES, FACET_TAGS
+from porefsi.solid.mesh import FACE_NAMES, FACET_TAGS, SolidMesh
 
-__all__ = ["Fixed", "Roller", "Prescribed", "Affine", "Traction", "Constraints", "uniaxial_bcs", "face_dofs"]
+__all__ = ["Fixed", "Roller", "Prescribed", "Affine", "Traction", "Constraints", "uniaxial_bcs", "face_dofs",
+           "face_nodes", "check_load_path"]
+
+#: Tolerance, relative to the mesh extent, for matching the edge midpoints of box-face facets to
+#: P2 Lagrange nodes (both are midpoints of the same two vertices, up to rounding).
+_MIDPOINT_RTOL = 1e-9
 
 
 def _face(face: str) -> str:
@@ -37,7 +42,10 @@ class Fixed:
 
 @dataclasses.dataclass(frozen=True)
 class Roller:
-    """Zero normal displacement on ``face``; tangential motion free (frictionless wall)."""
+    """Zero normal displacement on ``face``; tangential motion free (frictionless wall).
+
+    Acts on the solid at that face of the image box; none there, no constraint.
+    """
 
     face: str
 
@@ -71,11 +79,11 @@ class Affine:
     c: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
     G_rate: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((3, 3)))
 
-    def resolve(self, dof_points):  # noqa: D102
+    def resolve(self, mesh, dof_points):  # noqa: D102
         out = []
         G, c, Gr = (np.asarray(a, dtype=float) for a in (self.G, self.c, self.G_rate))
         for comp in range(3):
-            dofs = face_dofs(dof_points, self.face, comp)
+            dofs = face_dofs(mesh, dof_points, self.face, comp)
             X = dof_points[dofs // 3]
             out.append((self.face, comp, dofs, X @ G[comp] + c[comp], X @ Gr[comp]))
         return out
@@ -97,14 +105,97 @@ class Traction:
             raise InputError(f"unknown facet tag {self.tag!r}; use one of {sorted(FACET_TAGS)}")
 
 
-def face_dofs(dof_points: np.ndarray, face: str, component: int, rtol: float = 1e-9) -> np.ndarray:
-    """Dofs (interleaved numbering) of ``component`` at Lagrange nodes on the plane of ``face``."""
-    ax = FACE_NAMES.index(_face(face)) // 2
-    x = dof_points[:, ax]
-    ext = float(np.ptp(dof_points, axis=0).max()) or 1.0
-    plane = x.min() if face.endswith("min") else x.max()
-    nodes = np.flatnonzero(np.abs(x - plane) <= rtol * ext)
-    return 3 * nodes + int(component)
+def face_nodes(mesh: SolidMesh, dof_points: np.ndarray, face: str) -> np.ndarray:
+    """Lagrange nodes on the boundary facets tagged ``face``: the solid on that face of the image box.
+
+    Parameters
+    ----------
+    mesh : SolidMesh
+        The mesh whose facet tags say which boundary triangles lie on the image box faces.
+    dof_points : ndarray of float, shape (N, 3)
+        Lagrange node positions, m: the mesh vertices first (``N == mesh.n_nodes`` for P1), then
+        (P2) the edge midpoints.
+    face : {"xmin", "xmax", "ymin", "ymax", "zmin", "zmax"}
+
+    Returns
+    -------
+    ndarray of int64, shape (k,)
+        Sorted node indices; empty when no solid reaches that face of the image box.
+
+    Notes
+    -----
+    The faces are those of the image box (:attr:`SolidMesh.box`), identified by the facet tags,
+    not the extreme coordinates of the mesh: if solid fills only the bottom of the image, the top
+    face has no nodes (the mesh's highest points are pore wall, not the box face).
+    """
+    tri = mesh.facets_tagged(_face(face))
+    nodes = np.unique(tri)
+    n_extra = len(dof_points) - mesh.n_nodes
+    if n_extra <= 0 or len(tri) == 0:
+        return nodes.astype(np.int64)
+    from scipy.spatial import cKDTree
+
+    # P2: the edge midpoints of the tagged triangles
+    edges = np.unique(np.sort(tri[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0)
+    mid = 0.5 * (mesh.points[edges[:, 0]] + mesh.points[edges[:, 1]])
+    extra = np.asarray(dof_points[mesh.n_nodes:], dtype=float)
+    dist, idx = cKDTree(extra).query(mid)
+    tol = _MIDPOINT_RTOL * float(np.ptp(mesh.points, axis=0).max())
+    if np.any(dist > tol):
+        raise MeshError(f"{int(np.count_nonzero(dist > tol))} edge midpoints of the {face} facets are not "
+                        "P2 nodes: dof_points do not belong to this mesh")
+    return np.concatenate([nodes, mesh.n_nodes + np.unique(idx)]).astype(np.int64)
+
+
+def face_dofs(mesh: SolidMesh, dof_points: np.ndarray, face: str, component: int) -> np.ndarray:
+    """Dofs (interleaved numbering ``3 node + component``) of the nodes of :func:`face_nodes`, shape (k,)."""
+    return 3 * face_nodes(mesh, dof_points, face) + int(component)
+
+
+def check_load_path(mesh: SolidMesh, axis: str | int) -> None:
+    """Check that solid connects the min and max faces of the image box along ``axis``.
+
+    A uniaxial test fixes one face and drives the opposite one; without solid on both faces, or
+    without a connected piece of the mesh touching both, the sample carries no axial load.
+
+    Parameters
+    ----------
+    mesh : SolidMesh
+    axis : {"x", "y", "z", 0, 1, 2}
+
+    Raises
+    ------
+    MeshError
+        If no solid reaches one of the two faces, or no connected piece reaches both.
+    """
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    ax = axis_index(axis)
+    lo, hi = FACE_NAMES[2 * ax], FACE_NAMES[2 * ax + 1]
+    name = "xyz"[ax]
+    ends = {f: mesh.nodes_tagged(f) for f in (lo, hi)}
+    for f, nodes in ends.items():
+        if len(nodes) == 0:
+            b = mesh.bounds[:, ax]
+            raise MeshError(
+                f"no solid reaches the {f} face of the image box: the solid spans {name} in "
+                f"[{b[0]:.4g}, {b[1]:.4g}] m of the box [{mesh.box[0, ax]:.4g}, {mesh.box[1, ax]:.4g}] m, so a "
+                f"load frame along {name} has nothing to hold or push there; load along another axis, or crop "
+                "the image to the solid"
+            )
+    # nodes are connected when they share a tetrahedron (what the stiffness couples)
+    t = mesh.tets
+    rows = np.repeat(t[:, 0], 3)
+    cols = t[:, 1:].ravel()
+    graph = sp.coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(mesh.n_nodes,) * 2)
+    _, label = connected_components(graph, directed=False)
+    if not np.intersect1d(label[ends[lo]], label[ends[hi]]).size:
+        raise MeshError(
+            f"no connected solid joins the {lo} and {hi} faces of the image box: the pieces on the fixed face "
+            f"and those on the loaded face are separate, so the sample carries no load along {name}; load along "
+            "another axis, or use an image (or a smaller coarsen) in which the solid spans the sample"
+        )
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -126,24 +217,40 @@ class Constraints:
     n_full: int
 
     @classmethod
-    def build(cls, dof_points: np.ndarray, specs: Sequence) -> Constraints:
-        """Compile ``specs`` (Fixed/Roller/Prescribed) on nodes at ``dof_points`` (N, 3).
+    def build(cls, mesh: SolidMesh, dof_points: np.ndarray, specs: Sequence) -> Constraints:
+        """Compile ``specs`` (Fixed/Roller/Prescribed/Affine) on the Lagrange nodes ``dof_points`` (N, 3) of ``mesh``.
+
+        A spec on a box face acts on the nodes of the facets tagged with that face
+        (:func:`face_nodes`), i.e. on the solid at that face of the image box. A :class:`Roller`
+        on a face that no solid reaches is dropped (a wall the solid does not touch exerts no
+        force); any other condition there is an error, since it would support or drive nothing.
 
         Raises
         ------
         InputError
-            If two specs prescribe different motions for the same dof, or a face has no nodes.
+            If two specs prescribe different motions for the same dof.
+        MeshError
+            If a spec names a box face that no solid reaches.
         """
         n_full = 3 * len(dof_points)
         dofs_l, val_l, rate_l = [], [], []
         for spec in specs:
             if hasattr(spec, "resolve"):
-                parts = spec.resolve(dof_points)
+                parts = spec.resolve(mesh, dof_points)
             else:
-                parts = [(f, c, face_dofs(dof_points, f, c), v, r) for f, c, v, r in spec.items()]
+                parts = [(f, c, face_dofs(mesh, dof_points, f, c), v, r) for f, c, v, r in spec.items()]
             for face, _comp, dofs, val, rate in parts:
+                if len(dofs) == 0 and isinstance(spec, Roller):
+                    continue  # a frictionless wall that no solid touches holds nothing
                 if len(dofs) == 0:
-                    raise InputError(f"face {face} has no mesh nodes")
+                    ax = FACE_NAMES.index(face) // 2
+                    raise MeshError(
+                        f"{type(spec).__name__} condition on face {face}, but no solid reaches the {face} face of "
+                        f"the image box (no boundary facet tagged {face!r}; the solid spans {'xyz'[ax]} in "
+                        f"[{mesh.bounds[0, ax]:.4g}, {mesh.bounds[1, ax]:.4g}] m of the box "
+                        f"[{mesh.box[0, ax]:.4g}, {mesh.box[1, ax]:.4g}] m); support the sample on faces its "
+                        "solid touches, or crop the image to the solid"
+                    )
                 dofs_l.append(dofs)
                 val_l.append(np.broadcast_to(np.asarray(val, dtype=float), dofs.shape))
                 rate_l.append(np.broadcast_to(np.asarray(rate, dtype=float), dofs.shape))

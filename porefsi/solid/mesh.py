@@ -23,6 +23,9 @@ __all__ = ["SolidMesh", "MeshResult", "mesh_solid", "FACET_TAGS", "FACE_NAMES", 
 FACE_NAMES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 #: Tag code of boundary facets that are not on the image box (the solid-pore interface).
 PORE_WALL = 6
+#: Relative slack when checking that a mesh's image box contains its points (coordinates are
+#: computed as origin + index * spacing, so they carry a few ulps of rounding).
+_BOX_RTOL = 1e-12
 #: Facet tag codes: ``{"xmin": 0, "xmax": 1, ..., "zmax": 5, "pore_wall": 6}``.
 FACET_TAGS = {**{name: code for code, name in enumerate(FACE_NAMES)}, "pore_wall": PORE_WALL}
 
@@ -78,17 +81,25 @@ class SolidMesh:
         Boundary triangles, ordered so that their normal points out of the solid.
     facet_tags : ndarray of int8, shape (Nf,)
         Codes from :data:`FACET_TAGS` (box faces 0..5, pore wall 6).
+    box : ndarray of float, shape (2, 3), optional
+        The image box ``[[xmin, ymin, zmin], [xmax, ymax, zmax]]``, m, that the box-face tags
+        refer to (for :func:`mesh_solid`, ``origin`` to ``origin + shape * voxel_size``). It can
+        be larger than the bounding box of the points: solid need not reach every face. Default:
+        the bounding box of ``points``.
 
     Raises
     ------
     MeshError
         If any tetrahedron has non-positive volume (inverted or degenerate).
+    InputError
+        If ``box`` is not a (2, 3) box that contains every point.
     """
 
     points: np.ndarray
     tets: np.ndarray
     facets: np.ndarray
     facet_tags: np.ndarray
+    box: np.ndarray | None = None
 
     def __post_init__(self):
         p = np.ascontiguousarray(self.points, dtype=float)
@@ -110,7 +121,20 @@ class SolidMesh:
                 f"{bad} of {len(t)} tetrahedra are inverted or degenerate (volume <= 0, first at "
                 f"element {int(np.argmax(vol <= 0))}); reorder their nodes or remesh"
             )
-        for name, arr in (("points", p), ("tets", t), ("facets", f), ("facet_tags", g)):
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        if self.box is None:
+            b = np.stack([lo, hi])
+        else:
+            b = np.array(self.box, dtype=float)
+            # points are computed as origin + index * spacing: allow their rounding
+            slack = _BOX_RTOL * max(float(np.abs(b).max(initial=0.0)), float(np.abs(p).max()))
+            if (b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[1] <= b[0])
+                    or np.any(b[0] > lo + slack) or np.any(b[1] < hi - slack)):
+                raise InputError(
+                    f"box must be [[xmin, ymin, zmin], [xmax, ymax, zmax]] (m) containing every point "
+                    f"(points span {lo.tolist()} to {hi.tolist()}), got {b.tolist()}"
+                )
+        for name, arr in (("points", p), ("tets", t), ("facets", f), ("facet_tags", g), ("box", b)):
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
 
@@ -131,7 +155,10 @@ class SolidMesh:
 
     @property
     def bounds(self) -> np.ndarray:
-        """Bounding box ``[[xmin, ymin, zmin], [xmax, ymax, zmax]]``, m, shape (2, 3)."""
+        """Bounding box of the points ``[[xmin, ymin, zmin], [xmax, ymax, zmax]]``, m, shape (2, 3).
+
+        Not the image box (:attr:`box`) when solid does not reach every face of the image.
+        """
         return np.stack([self.points.min(axis=0), self.points.max(axis=0)])
 
     def facets_tagged(self, tag: str | int) -> np.ndarray:
@@ -186,10 +213,10 @@ class MeshResult:
     n_components_removed: int
 
 
-def _coarsen(solid: np.ndarray, c: int, threshold: float) -> tuple[np.ndarray, list[np.ndarray]]:
-    """Block-coarsen a boolean solid array; return it and the voxel-index grid lines per axis."""
+def _coarsen(solid: np.ndarray, c: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Block-coarsen a boolean solid array: solid fraction per block and the voxel-index grid lines per axis."""
     if c == 1:
-        return solid, [np.arange(n + 1) for n in solid.shape]
+        return solid.astype(np.float64), [np.arange(n + 1) for n in solid.shape]
     nb = [-(-n // c) for n in solid.shape]
     lines = [np.minimum(np.arange(m + 1) * c, n) for m, n in zip(nb, solid.shape, strict=True)]
     counts = solid.astype(np.float64)
@@ -197,7 +224,7 @@ def _coarsen(solid: np.ndarray, c: int, threshold: float) -> tuple[np.ndarray, l
         counts = np.add.reduceat(counts, lines[ax][:-1], axis=ax)
     sizes = [np.diff(g) for g in lines]
     nvox = sizes[0][:, None, None] * sizes[1][None, :, None] * sizes[2][None, None, :]
-    return counts / nvox >= threshold, lines
+    return counts / nvox, lines
 
 
 def _boundary_facets(tets: np.ndarray, n_nodes: int) -> np.ndarray:
@@ -334,21 +361,30 @@ def mesh_solid(
     if keep not in ("supported", "largest"):
         raise InputError(f"keep must be 'supported' or 'largest', got {keep!r}")
     ax = None if support_axis is None else axis_index(support_axis)
-    solid, lines = _coarsen(image.phases == 0, int(coarsen), float(threshold))
+    fine = image.phases == 0
+    if not fine.any():
+        raise MeshError("the image has no solid voxels (phase 0); there is nothing to mesh")
+    fraction, lines = _coarsen(fine, int(coarsen))
+    solid = fraction >= float(threshold)
     sizes = [np.diff(g).astype(float) for g in lines]
     cell_vol = sizes[0][:, None, None] * sizes[1][None, :, None] * sizes[2][None, None, :]
     total = float((cell_vol * solid).sum())
     if total == 0:
+        shape = "x".join(str(n) for n in image.phases.shape)
         raise MeshError(
-            f"no solid left after coarsening by {coarsen} with threshold {threshold}; "
-            "use a smaller coarsen or a lower threshold"
+            f"no solid left after coarsening by {coarsen}: in the {shape}-voxel image (solid fraction "
+            f"{float(fine.mean()):.3g}) no {coarsen}^3 block is at least {threshold:g} solid (the most solid "
+            f"block is {float(fraction.max()):.3g}), so every block became pore; the image is too small or too "
+            f"porous for this coarsening: use a smaller coarsen (--coarsen 1 meshes every voxel) or a lower "
+            "threshold"
         )
     mask, n_removed = _keep_components(solid, keep, ax)
     kept = float((cell_vol * mask).sum())
     ijk, tets, facets, tags = mesh_voxels(mask)
     h = image.voxel_size
     pts = np.stack([lines[d][ijk[:, d]] for d in range(3)], axis=1) * h + image.origin
-    mesh = SolidMesh(points=pts, tets=tets, facets=facets, facet_tags=tags)
+    box = np.stack([image.origin, image.origin + np.asarray(image.phases.shape) * h])
+    mesh = SolidMesh(points=pts, tets=tets, facets=facets, facet_tags=tags, box=box)
     return MeshResult(
         mesh=mesh,
         removed_solid_fraction=(total - kept) / total,

@@ -79,7 +79,7 @@ class SolidModel:
         else:
             self.dof_points, self.n_full = self.feb.dof_points, self.feb.n_dofs
         self.bcs = tuple(bcs)
-        self.constraints = Constraints.build(self.dof_points, self.bcs)
+        self.constraints = Constraints.build(mesh, self.dof_points, self.bcs)
         self.free = self.constraints.free
         self._p1 = P1Assembler(mesh, material) if self.backend == "numba" else None
         if self._p1 is not None:
@@ -232,7 +232,7 @@ class SolidModel:
         r"""Net force (3,), N, that the supports exert on each constrained box face.
 
         Computed as :math:`\sum_{a \in face} (f_{int} - f_{ext})_a` over the Lagrange nodes on
-        the face (the residual vanishes at free dofs at equilibrium).
+        the facets tagged with the face (the residual vanishes at free dofs at equilibrium).
         """
         from porefsi.solid.bc import face_dofs
 
@@ -240,7 +240,7 @@ class SolidModel:
         out = {}
         faces = sorted({spec.face for spec in self.bcs})
         for face in faces:
-            nodes = face_dofs(self.dof_points, face, 0) // 3
+            nodes = face_dofs(self.mesh, self.dof_points, face, 0) // 3
             out[face] = r[nodes].sum(axis=0)
         return out
 

@@ -29,8 +29,9 @@ def box_mesh(shape: tuple[int, int, int], size: tuple[float, float, float], orig
     if size.shape != (3,) or np.any(size <= 0):
         raise InputError(f"size must be three positive lengths (m), got {size}")
     ijk, tets, facets, tags = mesh_voxels(np.ones(shape, dtype=bool))
-    pts = np.asarray(origin, float) + ijk * (size / np.asarray(shape))
-    return SolidMesh(points=pts, tets=tets, facets=facets, facet_tags=tags)
+    origin = np.asarray(origin, float)
+    pts = origin + ijk * (size / np.asarray(shape))
+    return SolidMesh(points=pts, tets=tets, facets=facets, facet_tags=tags, box=np.stack([origin, origin + size]))
 
 
 def shell_octant_mesh(inner_radius: float, outer_radius: float, n: int, n_inner: int | None = None) -> SolidMesh:

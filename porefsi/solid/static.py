@@ -13,7 +13,7 @@ import numpy as np
 
 from porefsi.errors import ConvergenceError, InputError, MeshError
 from porefsi.image.voxel_image import axis_index
-from porefsi.solid.bc import uniaxial_bcs
+from porefsi.solid.bc import check_load_path, uniaxial_bcs
 from porefsi.solid.materials import Material
 from porefsi.solid.mesh import FACE_NAMES, SolidMesh
 
@@ -118,7 +118,7 @@ class UniaxialResult:
     reaction : ndarray (3,)
         Force the platen exerts on the loaded face, N.
     effective_modulus : float
-        |R_axis| / (A strain), Pa, A the box face area.
+        |R_axis| / (A strain), Pa, A the area of the image box face (solid and pore).
     strain : float
     newton : list of NewtonInfo
         One per load increment.
@@ -140,16 +140,22 @@ def uniaxial_compression(mesh: SolidMesh, material: Material, strain: float = 1e
                          ) -> UniaxialResult:
     """Compress ``mesh`` along ``axis`` by nominal ``strain`` with the paper's boundary conditions.
 
-    The min face is fixed, the max face is displaced by ``-strain * L`` (bonded platen), the
-    lateral faces are on rollers; the load is applied in ``n_steps`` equal increments, each
+    The faces are those of the image box (:attr:`SolidMesh.box`, found through the facet tags):
+    the solid on the min face is fixed, the solid on the max face is displaced by
+    ``-strain * L`` (bonded platen), the solid on the lateral faces is on rollers; L and the
+    face area A behind the effective modulus are the box's, so pore space at the box faces
+    counts as part of the sample. The load is applied in ``n_steps`` equal increments, each
     solved by Newton (t = 0..1 is the load parameter).
 
     Raises
     ------
     InputError
         strain <= 0 or >= 1, n_steps < 1.
-    MeshError, ConvergenceError
-        If elements invert or Newton fails (use more increments).
+    MeshError
+        If no connected solid joins the min and max faces along ``axis`` (:func:`check_load_path`),
+        or elements invert (use more increments).
+    ConvergenceError
+        If Newton fails (use more increments).
     """
     from porefsi.solid.model import SolidModel
     from porefsi.solid.stress import effective_modulus, element_cauchy, nodal_average, von_mises
@@ -160,8 +166,9 @@ def uniaxial_compression(mesh: SolidMesh, material: Material, strain: float = 1e
         raise InputError(f"n_steps must be >= 1, got {n_steps!r}")
     t0 = time.perf_counter()
     ax = axis_index(axis)
-    lo, hi = mesh.bounds[:, ax]
-    L = hi - lo
+    check_load_path(mesh, ax)
+    box = mesh.box  # the image box, not the extent of the solid in it
+    L = float(box[1, ax] - box[0, ax])
     model = SolidModel(mesh, material, uniaxial_bcs(ax, rate=-strain * L, lateral=lateral), order=order)
     u = np.zeros(model.n_dofs)
     infos = []
@@ -173,8 +180,7 @@ def uniaxial_compression(mesh: SolidMesh, material: Material, strain: float = 1e
             raise MeshError(f"{exc} (at load increment {k}/{n_steps}; try n_steps={2 * int(n_steps)})") from None
         infos.append(info)
     R = model.reactions(u, 1.0)[FACE_NAMES[2 * ax + 1]]  # force of the platen on the solid
-    ext = np.ptp(mesh.points, axis=0)
-    area = float(np.prod(np.delete(ext, ax)))
+    area = float(np.prod(np.delete(box[1] - box[0], ax)))
     sigma = element_cauchy(model, u, 1.0)
     vm = von_mises(sigma)
     return UniaxialResult(
