@@ -210,3 +210,41 @@ def test_precoupling_iterates_across_a_topology_change():
         assert len(r.precoupling_history) == r.row["precoupling_iterations"]
         n_prev = r.network.n_pores
     assert any(changed) and run.n_extractions > 0
+
+
+@pytest.mark.parametrize(("rule", "fractions"), [("left", (0.0, 2.0 / 3.0)), ("right", (1.0 / 3.0, 1.0))])
+def test_tdg_receives_the_pore_loads_at_its_sample_times(monkeypatch, rule, fractions):
+    """The loop hands the TDG step f_ext(s) = restriction of T P(s) at the rule's sample times
+    s = t0 + a dt (left: the paper's t0 and t0 + 2dt/3; right: t0 + dt/3, t0 + dt), with P(s) the
+    pore pressures of an independent drainage advanced through the same stops. One-way coupling
+    (the network stays the reference one), so the independent drainage is exact."""
+    from porefsi.flow.drainage import DrainageSimulator
+    from porefsi.integrators.tdg import TDGStepper
+
+    case = _small(network={"update": "none"}, coupling={"integrator": "tdg", "tdg_load_rule": rule})
+    run = CoupledRun(build_problem(case))
+    seen = []
+    real = TDGStepper.step
+
+    def spy(self, u, v, t, loads=None):
+        seen.append((t, self.dt, tuple(np.array(f) for f in loads)))
+        return real(self, u, v, t, loads=loads)
+
+    monkeypatch.setattr(TDGStepper, "step", spy)
+    list(run.steps())
+    p = run.problem
+    sim = DrainageSimulator(p.network, p.fluids, rate=case.drainage.rate, axis=case.image.axis)
+    itf, model = p.interface, p.model
+    assert [t for t, _, _ in seen] == [0.0, 1.0, 2.0]
+    for t0, dt, loads in seen:
+        times = [t0 + a * dt for a in fractions]
+        assert run.load_times(t0, dt) == tuple(times)
+        stops = sorted((set(times) | {t0 + dt}) - {t0})  # the loop's stops within the step
+        P = {t0: np.nan_to_num(sim.state.fluid_pressure)}
+        P |= {s: np.nan_to_num(sim.advance_to(s).fluid_pressure) for s in stops}
+        for s, f in zip(times, loads, strict=True):
+            expected = model.with_nodal_forces(itf.nodal_forces(P[s])).external_force(s)
+            assert np.linalg.norm(expected) > 0 or s == 0.0
+            np.testing.assert_array_equal(f, expected)
+        # the two samples are different loads (the drainage moves between them)
+        assert not np.array_equal(loads[0], loads[1])
