@@ -46,3 +46,30 @@ def test_solid_cli_slab_not_reaching_the_loaded_face(tmp_path, capsys):
     assert "no solid reaches the zmax face of the image box" in err and "another axis" in err
     assert main(["solid", str(path), "--voxel-size", "1e-6", "--coarsen", "1", "--axis", "x", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["effective_modulus_Pa"] > 0
+
+
+def test_cli_commands_run_with_blas_pinned_to_one_thread(monkeypatch, capsys):
+    """main() runs the command inside threadpool_limits(1) for every BLAS (numpy's and scipy's
+    OpenBLAS), whatever the caller had, and restores the caller's setting afterwards. The caller
+    here raises BLAS to 2 threads, so the test fails if main does not pin."""
+    import scipy.linalg  # noqa: F401  (both BLAS libraries loaded, so the caller's limit reaches both)
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import porefsi.cli._solid as solid_cmd
+
+    seen = []
+
+    def fake_run(args):
+        import scipy.sparse.linalg  # noqa: F401  (what the solid command loads)
+
+        seen.extend(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+        return 0
+
+    monkeypatch.setattr(solid_cmd, "run", fake_run)
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+        assert main(["solid", "--coarsen", "12"]) == 0
+        after = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    assert before and set(before) == {2}
+    assert len(seen) >= len(before) and set(seen) == {1}
+    assert after == before

@@ -87,3 +87,27 @@ def test_other_solvers_and_failure_history(rock_model, rng):
     assert len(exc.value.history) == 6 and exc.value.history[0] == 1.0
     with pytest.raises(ConvergenceError, match="breakdown"):
         pcg(-sp.identity(4), np.ones(4))
+
+
+def test_solves_pin_blas_to_one_thread():
+    """pcg (hence AMG-CG and Jacobi-CG) runs with every BLAS at one thread even when the caller
+    allows two: the preconditioner, called from inside the CG loop, sees 1 thread; the caller's
+    setting is back afterwards."""
+    import scipy.linalg  # noqa: F401  (both BLAS libraries loaded)
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    seen = []
+
+    def precondition(r):
+        seen.extend(blas_threads())
+        return r
+
+    A = sp.diags(np.arange(1.0, 11.0)).tocsr()
+    with threadpool_limits(limits=2, user_api="blas"):
+        x, _ = pcg(A, np.ones(10), precondition)
+        assert set(blas_threads()) == {2}
+    assert seen and set(seen) == {1}
+    np.testing.assert_allclose(A @ x, np.ones(10), rtol=1e-8)

@@ -23,6 +23,8 @@ _MODULES = ("run", "extract", "drainage", "solid")
 EXIT_OK = 0
 EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130
+#: BLAS threads while a command runs.
+BLAS_THREADS = 1
 
 
 class _Parser(argparse.ArgumentParser):
@@ -57,7 +59,14 @@ def main(argv: list[str] | None = None) -> int:
 
     Errors that porefsi raises on purpose print one line ``porefsi: error: ...`` to stderr and
     return 2; argparse usage errors also return 2.
+
+    The command runs with BLAS pinned to one thread (threadpoolctl; restored on return): the
+    solvers' dot products and small dense operations are on vectors of 1e4-1e6 entries, where
+    threaded BLAS was measured 10-30x slower (DESIGN.md section 5).
     """
+    import scipy.linalg  # noqa: F401  (loads scipy's own BLAS, so that the limit below reaches it)
+    from threadpoolctl import threadpool_limits
+
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -67,7 +76,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_OK
     try:
-        return int(args.func(args) or 0)
+        with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+            return int(args.func(args) or 0)
     except PorefsiError as exc:
         print(f"porefsi: error: {exc}", file=sys.stderr)
         return EXIT_ERROR
