@@ -157,13 +157,22 @@ class AMGSolverFactory:
         Reuse a hierarchy while CG converges within this many iterations.
     maxiter : int
         CG iteration cap for one solve.
+    max_coarse : int
+        Largest coarsest-level size (dofs) before pyamg stops coarsening.
+    rotations : bool, default True
+        Near-null space = the six rigid-body modes (True) or the three translations only (False,
+        for comparison: on a slender cantilever CG needs ~10x more iterations without the
+        rotations, on the porous rock ~25 % more; see tests/test_solid_linsolve.py).
     """
 
     def __init__(self, dof_points: np.ndarray, free: np.ndarray, *, rtol: float = 1e-8,
-                 rebuild_iterations: int = 40, maxiter: int = 1000, max_coarse: int = 300):
+                 rebuild_iterations: int = 40, maxiter: int = 1000, max_coarse: int = 300,
+                 rotations: bool = True):
         self.n_full = 3 * len(dof_points)
         self.free = np.asarray(free, dtype=np.int64)
         self.B_full = rigid_body_modes(dof_points)
+        if not rotations:
+            self.B_full = np.ascontiguousarray(self.B_full[:, :3])
         self.rtol, self.rebuild_iterations, self.maxiter = float(rtol), int(rebuild_iterations), int(maxiter)
         self.max_coarse = int(max_coarse)
         self.ml = None
