@@ -248,3 +248,40 @@ def test_tdg_receives_the_pore_loads_at_its_sample_times(monkeypatch, rule, frac
             np.testing.assert_array_equal(f, expected)
         # the two samples are different loads (the drainage moves between them)
         assert not np.array_equal(loads[0], loads[1])
+
+
+def _hull_on_grid(throats: bool):
+    """Hull interface of three pores (one throat) on a 31³ node grid of the unit cube, every
+    pore reaching nodes, so the paper's load balance holds to round-off."""
+    from porefsi.coupling.interface import hull_interface
+
+    g = np.linspace(0.0, 1.0, 31)
+    x = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    c = np.array([[0.3, 0.5, 0.5], [0.7, 0.5, 0.5], [0.5, 0.25, 0.7]])
+    r = np.array([0.08, 0.11, 0.06])
+    thr = (np.array([[0, 1]]), np.array([0.05]), np.array([[[0.38, 0.5, 0.5], [0.59, 0.5, 0.5]]]))
+    return hull_interface(c, r, x, n_test_points=300, tolerance=0.04, rng=np.random.default_rng(5),
+                          throats=thr if throats else None)
+
+
+@pytest.mark.parametrize("throats", [False, True])
+def test_hull_load_balance_reads_the_operator(throats):
+    """The hull's load balance (sum of |f| over a pore's nodes = P x wall area) is computed from
+    the operator, so an operator that hands over the wrong load fails it even though the areas
+    booked during assembly are right: scaled by 3 (error 2), or two pores' columns swapped."""
+    import dataclasses
+
+    itf = _hull_on_grid(throats)
+    assert itf.n_unloaded == 0 and (itf.throat_operator is not None) == throats
+    p = np.array([3.0e4, 1.0e4, 2.0e4])
+    assert itf.load_balance_error(p) < 1e-12
+    tripled = dataclasses.replace(itf, operator=3.0 * itf.operator)
+    if throats:  # the sphere part (T - Theta C) is then 3 S + 2 Theta C: most of the load is extra
+        assert tripled.load_balance_error(p) > 1.0
+    else:
+        np.testing.assert_allclose(tripled.load_balance_error(p), 2.0, rtol=1e-9)
+    swapped = dataclasses.replace(itf, operator=itf.operator[:, [1, 0, 2]].tocsr())
+    assert swapped.load_balance_error(p) > 0.1
+    if throats:  # a throat load handed over twice is caught too
+        doubled = dataclasses.replace(itf, throat_operator=2.0 * itf.throat_operator)
+        assert doubled.load_balance_error(p) > 0.01

@@ -57,13 +57,22 @@ class Interface:
     seconds : float
         Build time, s.
     handed_area : ndarray, shape (Np,)
-        ``hull``: per pore, the force magnitude per unit pressure the operator hands to nodes, m²
-        (equal to ``wall_area`` for every loaded pore); ``traction``: the facet area.
+        ``hull``: per pore, the area booked while the operator was assembled, m² (equal to
+        ``wall_area`` for every loaded pore; bookkeeping only: :meth:`load_balance_error` reads
+        the operator instead); ``traction``: the facet area.
     wall_vector : ndarray, shape (Np, 3) or None
         ``traction``: per pore, the resultant of the wall traction per unit pressure,
         ``-sum_e A_e n_e`` over its wall facets, m² (zero for a closed cavity; a pore open to a
         throat or a box face pushes the solid away from the opening); computed from the facets,
         independently of the operator.
+    throat_operator : scipy.sparse.csr_matrix, shape (3 Nn, Nt_loaded), or None
+        ``hull`` with throat forces: column ``t`` is the nodal load of throat cylinder ``t`` per
+        unit throat pressure (part of :attr:`operator`, which adds it with the mean pressure of
+        the throat's two pores); kept apart so the load balance can be checked source by source.
+    throat_pores : ndarray of int, shape (Nt_loaded, 2), or None
+        The two pores of each column of :attr:`throat_operator`.
+    throat_area : ndarray, shape (Nt_loaded,), or None
+        Lateral area ``2 pi r L`` of each throat cylinder, m².
     """
 
     operator: sp.csr_matrix
@@ -74,6 +83,9 @@ class Interface:
     seconds: float
     handed_area: np.ndarray | None = None
     wall_vector: np.ndarray | None = None
+    throat_operator: sp.csr_matrix | None = None
+    throat_pores: np.ndarray | None = None
+    throat_area: np.ndarray | None = None
 
     def __post_init__(self):
         if self.handed_area is None:
@@ -97,9 +109,20 @@ class Interface:
         return (self.operator @ p).reshape(-1, 3)
 
     def load_balance_error(self, pressure) -> float:
-        """Relative mismatch between the load handed over and the load the pores carry.
+        r"""Relative mismatch between the load handed over and the load the pores carry.
 
-        ``hull``: ``|sum_k |f_k| - sum_i P_i A_i| / sum_i P_i A_i`` (force magnitudes).
+        ``hull`` (the paper's check): every source (pore sphere, and throat cylinder with
+        throat forces) must hand its nodes force magnitudes adding up to its pressure times its
+        wall area. The magnitudes are read from the operator itself: with
+        :math:`m_i = \sum_k |T_{k,i}|` the force magnitude of pore column ``i`` at node ``k``
+        (per unit pressure; the sphere part :math:`T - \Theta C` when throat forces are on,
+        :math:`\Theta` = :attr:`throat_operator`, ``C`` its half-and-half pore weights),
+
+        .. math:: e = \frac{\sum_i |P_i|\,|m_i - 4\pi r_i^2| + \sum_t |\bar P_t|\,|m_t - 2\pi r_t L_t|}
+                            {\sum_i |P_i|\,4\pi r_i^2 + \sum_t |\bar P_t|\,2\pi r_t L_t} .
+
+        It is round-off when every source reaches a node, and the fraction of the load lost
+        otherwise (:attr:`n_unloaded`); a wrongly scaled or permuted operator shows up in it.
         ``traction``: ``sum_i |P_i| |R_i - w_i| / sum_i |P_i| A_i``, with ``R_i`` the resultant of
         the nodal forces the operator assigns to pore ``i`` per unit pressure and ``w_i`` the
         exact wall-traction resultant (:attr:`wall_vector`); without ``wall_vector`` the resultant
@@ -107,16 +130,48 @@ class Interface:
         """
         p = np.asarray(pressure, dtype=float)
         f = self.nodal_forces(p)
+        if self.method == "hull":
+            return self._hull_balance(p)
         ref = float(np.sum(np.abs(p) * self.wall_area))
         if ref == 0.0:
             return 0.0
-        if self.method == "hull":
-            return abs(float(np.sum(np.abs(p) * self.handed_area)) - ref) / ref
         if self.wall_vector is None:
             return float(np.linalg.norm(f.sum(axis=0))) / ref
         op = self.operator.tocsc()
         res = np.stack([np.asarray(op[k::3].sum(axis=0)).ravel() for k in range(3)], axis=1)  # (Np, 3)
         return float(np.sum(np.abs(p) * np.linalg.norm(res - self.wall_vector, axis=1))) / ref
+
+    def _hull_balance(self, p: np.ndarray) -> float:
+        sphere = self.wall_area.copy()
+        T = self.operator
+        dev = ref = 0.0
+        if self.throat_operator is not None and self.throat_operator.shape[1]:
+            conns = np.asarray(self.throat_pores, np.int64)
+            area_t = np.asarray(self.throat_area, float)
+            n_t = len(conns)
+            C = sp.csr_matrix((np.full(2 * n_t, 0.5), (np.repeat(np.arange(n_t), 2), conns.ravel())),
+                              shape=(n_t, self.n_pores))
+            T = T - self.throat_operator @ C
+            np.subtract.at(sphere, conns[:, 0], 0.5 * area_t)
+            np.subtract.at(sphere, conns[:, 1], 0.5 * area_t)
+            pt = np.abs(C @ p)
+            dev += float(np.sum(pt * np.abs(_column_magnitudes(self.throat_operator) - area_t)))
+            ref += float(np.sum(pt * area_t))
+        ap = np.abs(p)
+        dev += float(np.sum(ap * np.abs(_column_magnitudes(T) - sphere)))
+        ref += float(np.sum(ap * sphere))
+        return dev / ref if ref > 0 else 0.0
+
+
+def _column_magnitudes(T: sp.spmatrix) -> np.ndarray:
+    """``sum_k |(T[3k], T[3k+1], T[3k+2])|`` of every column of a (3 Nn, m) nodal-force operator."""
+    sq = sp.csr_matrix(T).multiply(T).tocsr()
+    n_nodes = T.shape[0] // 3
+    group = sp.csr_matrix((np.ones(3 * n_nodes), (np.repeat(np.arange(n_nodes), 3), np.arange(3 * n_nodes))),
+                          shape=(n_nodes, 3 * n_nodes))
+    per_node = (group @ sq).tocsr()
+    per_node.data = np.sqrt(per_node.data)
+    return np.asarray(per_node.sum(axis=0)).ravel()
 
 
 def sphere_test_points(n: int, rng: np.random.Generator) -> np.ndarray:
@@ -280,6 +335,7 @@ def hull_interface(
                   for i in range(n_p)]
     n_unloaded = int(np.sum(~loaded))
     wall = area.copy()
+    throat_op = throat_area = None
     if throats is not None:
         conns, rt, ends = (np.asarray(v) for v in throats)
         ends = np.asarray(ends, float).reshape(-1, 2, 3)
@@ -306,12 +362,27 @@ def hull_interface(
             mem_t = cand[ml]
             near_t = _kernels._nearest_member(ttp, tptr_t, mp, mem_t, x)
             area_t = 2 * np.pi * rt * length
-            share = (np.asarray(conns, np.int64), np.full((n_t, 2), 0.5))
-            _lump(x, mem_t, near_t, tptr_t, ends[:, 0], ax_u, area_t, n, share, rows, cols, vals, handed)
+            # each throat is its own column of Theta (per unit throat pressure); the operator adds
+            # Theta C, C giving each throat the mean pressure of its two pores
+            rows_t, cols_t, vals_t = [], [], []
+            handed_t = np.zeros(n_t)
+            own = (np.arange(n_t)[:, None], np.ones((n_t, 1)))
+            _lump(x, mem_t, near_t, tptr_t, ends[:, 0], ax_u, area_t, n, own, rows_t, cols_t, vals_t, handed_t)
+            throat_op = _assemble(rows_t, cols_t, vals_t, (3 * x.shape[0], n_t))
+            conns = np.asarray(conns, np.int64)
+            np.add.at(handed, conns[:, 0], 0.5 * handed_t)
+            np.add.at(handed, conns[:, 1], 0.5 * handed_t)
             np.add.at(wall, conns[:, 0], 0.5 * area_t)
             np.add.at(wall, conns[:, 1], 0.5 * area_t)
     T = _assemble(rows, cols, vals, (3 * x.shape[0], n_p))
-    return Interface(T, "hull", wall, tuple(pore_nodes), n_unloaded, time.perf_counter() - t0, handed)
+    if throat_op is not None:
+        C = sp.csr_matrix((np.full(2 * len(conns), 0.5), (np.repeat(np.arange(len(conns)), 2), conns.ravel())),
+                          shape=(len(conns), n_p))
+        T = (T + throat_op @ C).tocsr()
+        throat_area = area_t
+    return Interface(T, "hull", wall, tuple(pore_nodes), n_unloaded, time.perf_counter() - t0, handed,
+                     throat_operator=throat_op, throat_pores=conns if throat_op is not None else None,
+                     throat_area=throat_area)
 
 
 def _lump(x, members, near, tptr, origin, axis, area, n, share, rows, cols, vals, handed) -> np.ndarray:
