@@ -388,6 +388,31 @@ def test_voxel_size_must_be_positive(tmp_path, rng):
             read_image(tmp_path / "a.npy", voxel_size=bad)
 
 
+@pytest.mark.parametrize("bad", ["abc", "", [1e-6, 2e-6], object()], ids=["abc", "empty", "list", "object"])
+@pytest.mark.parametrize("name", ["a.npy", "a.npz", "a.mhd", "a.tif"])
+def test_non_numeric_voxel_size_is_an_input_error_for_every_reader(tmp_path, rng, name, bad):
+    # Before the fix, float("abc") escaped as a bare ValueError (.npy), or, for .mhd, was caught by the
+    # reader and reported as an unreadable file. The check now runs before the file is opened.
+    img = VoxelImage(_binary(rng), 2e-6)
+    path = tmp_path / name
+    if name == "a.npy":
+        np.save(path, img.phases)
+    elif name == "a.tif":
+        tifffile.imwrite(path, img.phases.transpose(2, 1, 0))
+    else:
+        path = write_image(img, path)
+    with pytest.raises(InputError, match="voxel_size must be a positive length in metres") as err:
+        read_image(path, voxel_size=bad)
+    assert "cannot read" not in str(err.value) and "--voxel-size" in str(err.value)
+    assert read_image(path, voxel_size="3e-6").voxel_size == 3e-6  # a numeric string is a number
+
+
+@pytest.mark.parametrize("bad", ["abc", None, [1e-6]])
+def test_voxel_image_rejects_non_numeric_voxel_size(rng, bad):
+    with pytest.raises(InputError, match="voxel size must be a positive length in metres"):
+        VoxelImage(_binary(rng), bad)
+
+
 # ------------------------------------------------------------------------------------------
 # built-in sample
 # ------------------------------------------------------------------------------------------

@@ -363,6 +363,15 @@ def test_bad_parameters(kw):
         absolute_permeability(lattice_network((3, 2, 2)), "x", **kw)
 
 
+@pytest.mark.parametrize("rtol", [0.0, -1e-9, float("nan"), float("inf"), 1.0, "abc", None])
+@pytest.mark.parametrize("solver", ["direct", "cg"])
+def test_bad_rtol_is_an_input_error_naming_it(rtol, solver):
+    # Checked whichever solver runs: a bad value must not hide until the problem grows past the
+    # direct-solver size. rtol >= 1 would let CG accept its zero start and report a meaningless k.
+    with pytest.raises(InputError, match="rtol"):
+        absolute_permeability(lattice_network((3, 2, 2)), "x", solver=solver, rtol=rtol)
+
+
 def test_result_is_frozen_and_input_untouched(rng):
     net = lattice_network((4, 3, 3), rng=rng)
     before = {k: getattr(net, k).copy() for k in ("pore_coords", "throat_radius", "pore_faces")}

@@ -245,7 +245,7 @@ def absolute_permeability(
         SuperLU (``scipy.sparse.linalg.spsolve``) or conjugate gradients with a smoothed-aggregation
         AMG preconditioner; 'auto' is direct up to 5 000 unknowns (round-off exact), CG above.
     rtol : float
-        Relative residual required of CG.
+        Relative residual required of CG, in (0, 1) (checked for every solver).
 
     Returns
     -------
@@ -254,7 +254,8 @@ def absolute_permeability(
     Raises
     ------
     InputError
-        Non-positive or non-finite ``viscosity``/``dp``, unknown axis, boundary or solver.
+        Non-positive, non-finite or non-numeric ``viscosity``/``dp``/``rtol``, unknown axis,
+        boundary or solver.
     NetworkError
         No pores on the inlet or outlet face, no cluster joining inlet to outlet, or (with
         ``boundary='centre'`` only) a pore on both faces, whose pressure would be both
@@ -290,9 +291,15 @@ def absolute_permeability(
     t0 = time.perf_counter()
     ax = axis_index(axis)
     name = AXES[ax]
-    for label, val in (("viscosity", viscosity), ("dp", dp)):
-        if not np.isfinite(val) or val <= 0:
+    for label, val in (("viscosity", viscosity), ("dp", dp), ("rtol", rtol)):
+        try:
+            ok = bool(np.isfinite(val) and val > 0)
+        except TypeError:  # not a number (None, a string, ...)
+            ok = False
+        if not ok:
             raise InputError(f"{label} must be a positive finite number, got {val!r}")
+    if rtol >= 1:  # CG would accept its zero start: no flow solved, a meaningless k
+        raise InputError(f"rtol is CG's relative residual and must be < 1, got {rtol!r}")
     if boundary not in ("conduit", "centre"):
         raise InputError(f"unknown boundary {boundary!r}; use 'conduit' (default) or 'centre'")
     net.require_inlet_outlet(ax)

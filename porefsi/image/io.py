@@ -252,6 +252,20 @@ def _read_any(p: Path, suffix: str, shape, dtype, key, mhd_unit, raw_order, voxe
     return arr, file_vs, origin
 
 
+def _check_voxel_size(voxel_size) -> float:
+    """``voxel_size`` as a float, or :class:`InputError` unless it is a positive finite number."""
+    try:
+        vs = float(voxel_size)
+    except (TypeError, ValueError):
+        vs = math.nan
+    if not math.isfinite(vs) or vs <= 0:
+        raise InputError(
+            f"voxel_size must be a positive length in metres, got {voxel_size!r}; pass a number such as "
+            "5.345e-6 (CLI --voxel-size M)"
+        )
+    return vs
+
+
 def read_image(
     path,
     *,
@@ -274,7 +288,8 @@ def read_image(
         ``.npy``, ``.npz``, ``.mhd`` (+ data file), ``.raw`` (with a ``.mhd`` of the same stem, or
         ``shape`` and ``dtype``), ``.bin``/``.dat`` (``shape`` and ``dtype``), ``.tif``/``.tiff``.
     voxel_size : float, optional
-        Voxel edge length, m. Overrides the file's; required when the file has none.
+        Voxel edge length, m, finite and > 0 (checked before the file is read). Overrides the
+        file's; required when the file has none.
     shape : sequence of 3 int, optional
         Raw files: (nx, ny, nz).
     dtype : str or numpy dtype, optional
@@ -301,8 +316,9 @@ def read_image(
     Raises
     ------
     InputError
-        Missing file, unknown suffix, wrong raw size, non-3-D array, unknown voxel size,
-        ambiguous pore convention, all-solid or all-pore image. Each message names the fix.
+        Missing file, unknown suffix, wrong raw size, non-3-D array, unknown voxel size or one
+        that is not a positive number, ambiguous pore convention, all-solid or all-pore image.
+        Each message names the fix.
 
     Notes
     -----
@@ -320,6 +336,8 @@ def read_image(
     >>> img.shape, img.voxel_size, round(img.porosity, 5)
     ((120, 120, 120), 5.345e-06, 0.18821)
     """
+    if voxel_size is not None:  # before reading: a bad value must not surface as a read error
+        voxel_size = _check_voxel_size(voxel_size)
     p = Path(path)
     if not p.exists():
         raise InputError(f"image file {p} does not exist; check the path (run from the right directory?)")
@@ -334,9 +352,7 @@ def read_image(
         raise InputError(f"cannot read {p} as {suffix} ({type(exc).__name__}: {exc}); is the file complete "
                          "and of the format its suffix says?") from None
     if voxel_size is not None:
-        vs = float(voxel_size)
-        if not math.isfinite(vs) or vs <= 0:
-            raise InputError(f"voxel_size must be a positive length in metres, got {voxel_size!r}")
+        vs = voxel_size
     elif file_vs is not None:
         vs = file_vs
     else:

@@ -79,7 +79,10 @@ class VoxelImage:
             )
         ph = np.ascontiguousarray(ph)
         ph.setflags(write=False)
-        vs = float(self.voxel_size)
+        try:
+            vs = float(self.voxel_size)
+        except (TypeError, ValueError):  # e.g. a string that is not a number
+            vs = float("nan")
         if not np.isfinite(vs) or vs <= 0:
             raise InputError(f"voxel size must be a positive length in metres, got {self.voxel_size!r}")
         org = np.asarray(self.origin, dtype=float).reshape(-1)

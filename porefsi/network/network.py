@@ -15,8 +15,29 @@ __all__ = ["Network", "FACES"]
 FACES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 
 
+#: Relative slack allowed when checking throat radius <= pore radius: both are products of voxel
+#: counts and the voxel size, or halves of stored diameters, so equal radii may differ by round-off.
+_RADIUS_RTOL = 1e-12
+
+
+def _own(name, value, dtype) -> np.ndarray:
+    """``value`` as a C-contiguous array of ``dtype`` the network can make read-only.
+
+    A caller's writable array is copied (so freezing the network never changes the caller's
+    array, and the caller cannot change the network through it); an array that is already
+    read-only (e.g. a field of another Network, passed on by :meth:`Network.replace`) is shared.
+    """
+    try:
+        a = np.asarray(value)
+        if isinstance(value, np.ndarray) and a.flags.writeable and a.dtype == np.dtype(dtype):
+            return np.array(a, dtype=dtype, order="C", copy=True)
+        return np.ascontiguousarray(a, dtype=dtype)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"Network.{name} must be an array of numbers, got {type(value).__name__} ({exc})") from None
+
+
 def _arr(name, value, dtype, shape):
-    a = np.ascontiguousarray(value, dtype=dtype)
+    a = _own(name, value, dtype)
     if a.shape != shape:
         raise InputError(f"Network.{name} must have shape {shape}, got {a.shape}")
     if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
@@ -63,8 +84,16 @@ class Network:
     Raises
     ------
     InputError
-        Shapes, NaNs, non-positive sizes, self-loops, duplicate throats, throat radius larger
-        than a pore radius, or pore indices out of range.
+        Shapes, non-numeric or non-integer entries, NaNs, non-positive sizes, self-loops,
+        duplicate throats (in either order), throat radius larger than a pore radius, pore
+        indices out of range, or a bad ``voxel_size`` or ``shape``.
+
+    Notes
+    -----
+    The dataclass is frozen and its arrays are read-only. Writable arrays passed in are copied,
+    so the caller's arrays stay writable and cannot change the network afterwards; read-only
+    arrays (e.g. another network's fields) are shared. ``dataclasses.replace`` and
+    :meth:`replace` run the same validation again.
     """
 
     pore_coords: np.ndarray
@@ -81,7 +110,7 @@ class Network:
     throat_volume: np.ndarray | None = None
 
     def __post_init__(self):
-        coords = np.ascontiguousarray(self.pore_coords, dtype=float)
+        coords = _own("pore_coords", self.pore_coords, float)
         if coords.ndim != 2 or coords.shape[1] != 3:
             raise InputError(f"Network.pore_coords must have shape (Np, 3), got {coords.shape}")
         n_p = coords.shape[0]
@@ -117,10 +146,16 @@ class Network:
             raise InputError("Network.throat_volume must be >= 0")
         if n_t:
             if conns.min() < 0 or conns.max() >= n_p:
-                raise InputError(f"Network.throat_conns refers to pores outside 0..{n_p - 1}")
+                raise InputError(
+                    f"Network.throat_conns refers to pores outside 0..{n_p - 1} "
+                    f"(min {int(conns.min())}, max {int(conns.max())}); conns must index pore_coords rows"
+                )
             loops = np.flatnonzero(conns[:, 0] == conns[:, 1])
             if loops.size:
-                raise InputError(f"throat {int(loops[0])} joins pore {int(conns[loops[0], 0])} to itself")
+                raise InputError(
+                    f"throat {int(loops[0])} joins pore {int(conns[loops[0], 0])} to itself "
+                    f"({loops.size} such self-loop(s)); drop those rows of throat_conns"
+                )
             swap = conns[:, 0] > conns[:, 1]
             if swap.any():
                 conns = conns.copy()
@@ -132,9 +167,12 @@ class Network:
             uniq, first, counts = np.unique(key, return_index=True, return_counts=True)
             if uniq.size != n_t:
                 d = first[np.argmax(counts > 1)]
-                raise InputError(f"duplicate throat between pores {tuple(int(c) for c in conns[d])}")
+                raise InputError(
+                    f"duplicate throat between pores {tuple(int(c) for c in conns[d])} "
+                    f"({n_t - uniq.size} duplicate row(s) in throat_conns, either order); keep one throat per pair"
+                )
             rmax = np.minimum(f["pore_radius"][conns[:, 0]], f["pore_radius"][conns[:, 1]])
-            wide = np.flatnonzero(f["throat_radius"] > rmax * (1 + 1e-12))
+            wide = np.flatnonzero(f["throat_radius"] > rmax * (1 + _RADIUS_RTOL))
             if wide.size:
                 t = int(wide[0])
                 raise InputError(
@@ -142,13 +180,19 @@ class Network:
                     f"{rmax[t]:.4g} m; clip throat radii to min(pore radii)"
                 )
         f["throat_conns"] = conns
-        vs = float(self.voxel_size)
+        try:
+            vs = float(self.voxel_size)
+        except (TypeError, ValueError):
+            vs = float("nan")
         if not np.isfinite(vs) or vs <= 0:
-            raise InputError(f"Network.voxel_size must be > 0 m, got {self.voxel_size!r}")
+            raise InputError(f"Network.voxel_size must be a positive length in metres, got {self.voxel_size!r}")
         f["voxel_size"] = vs
-        shp = tuple(int(s) for s in self.shape)
+        try:
+            shp = tuple(int(s) for s in self.shape)
+        except (TypeError, ValueError):
+            shp = ()
         if len(shp) != 3 or min(shp) < 1:
-            raise InputError(f"Network.shape must be 3 positive ints, got {self.shape!r}")
+            raise InputError(f"Network.shape must be 3 positive ints (nx, ny, nz), got {self.shape!r}")
         f["shape"] = shp
         for k, v in f.items():
             if isinstance(v, np.ndarray):
