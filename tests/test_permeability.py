@@ -363,7 +363,7 @@ def test_bad_parameters(kw):
         absolute_permeability(lattice_network((3, 2, 2)), "x", **kw)
 
 
-@pytest.mark.parametrize("rtol", [0.0, -1e-9, float("nan"), float("inf"), 1.0, "abc", None])
+@pytest.mark.parametrize("rtol", [0.0, -1e-9, float("nan"), float("inf"), 1.0, "abc", None, [1e-6, 1e-6]])
 @pytest.mark.parametrize("solver", ["direct", "cg"])
 def test_bad_rtol_is_an_input_error_naming_it(rtol, solver):
     # Checked whichever solver runs: a bad value must not hide until the problem grows past the

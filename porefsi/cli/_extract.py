@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from porefsi.cli._common import add_image_args, emit, image_from_args
+from porefsi.cli._common import _ArgumentError, add_image_args, emit, image_from_args, positive_float
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import AXES
 from porefsi.network.network import Network
@@ -24,16 +24,67 @@ __all__ = ["register", "add_network_args", "network_from_args", "run_extract", "
 
 _SAMPLE = "built-in sample berea120"
 
+#: Defaults of :func:`porefsi.network.extract.extract_network`'s tuning parameters, repeated for the
+#: ``--help`` text so that building the parser does not import numba (tests check they match).
+EXTRACT_DEFAULTS = {"min_radius": 2.0, "extent": 2.0, "merge_ratio": 0.9}
+
+#: Attribute names of the extraction options :func:`_add_extraction_args` adds.
+EXTRACT_OPTIONS = tuple(EXTRACT_DEFAULTS)
+
 
 def add_network_args(p: argparse.ArgumentParser) -> None:
-    """Add ``IMAGE_OR_NET``, ``--axis``, ``--keep-isolated`` and the image options to ``p``."""
+    """Add ``IMAGE_OR_NET``, ``--axis``, ``--keep-isolated``, the extraction and the image options to ``p``."""
     p.add_argument(
         "source", nargs="?", default=None, metavar="IMAGE_OR_NET",
         help="a network file (NET.npz from 'porefsi extract -o') or a segmented image "
         "(.npy .npz .raw+.mhd .raw .tif); default: the built-in 120^3 Berea sample",
     )
     _add_axis_args(p)
+    _add_extraction_args(p)
     add_image_args(p)
+
+
+def _fraction(text: str) -> float:
+    """Argparse type: a number in (0, 1]."""
+    x = positive_float(text)
+    if x > 1:
+        raise _ArgumentError(f"expected a number in (0, 1], got {text!r}")
+    return x
+
+
+def _at_least_one(text: str) -> float:
+    """Argparse type: a finite number >= 1."""
+    x = positive_float(text)
+    if x < 1:
+        raise _ArgumentError(f"expected a number >= 1, got {text!r}")
+    return x
+
+
+def _add_extraction_args(p: argparse.ArgumentParser) -> None:
+    d = EXTRACT_DEFAULTS
+    g = p.add_argument_group(
+        "extraction options (images only; see porefsi.network.extract.extract_network)")
+    g.add_argument(
+        "--min-radius", type=_at_least_one, default=None, metavar="VOXELS",
+        help="noise floor: a pore must hold a maximal ball at least this many voxels in radius; "
+        f"lower it (>= 1) to find pores in images whose pores are only a few voxels wide; default {d['min_radius']:g}",
+    )
+    g.add_argument(
+        "--extent", type=_at_least_one, default=None, metavar="RADII",
+        help="family reach in pore radii: a ball of about a pore's size farther than this from its centre "
+        "starts a new pore; lower it (>= 1) to split long channels into chains of pores; "
+        f"default {d['extent']:g}",
+    )
+    g.add_argument(
+        "--merge-ratio", type=_fraction, default=None, metavar="R",
+        help="balls smaller than R times a pore's radius join that pore, and pores whose throat is at least "
+        f"R times the smaller pore radius are merged; in (0, 1]; default {d['merge_ratio']:g}",
+    )
+
+
+def _extraction_kwargs(args: argparse.Namespace) -> dict:
+    """The extraction options given on the command line, as ``extract_network`` keywords."""
+    return {k: getattr(args, k) for k in EXTRACT_OPTIONS if getattr(args, k, None) is not None}
 
 
 def _add_axis_args(p: argparse.ArgumentParser) -> None:
@@ -52,7 +103,7 @@ def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
     t0 = time.perf_counter()
     if source is not None and is_network_file(source):
         image_opts = [f"--{k.replace('_', '-')}" for k in ("voxel_size", "threshold", "pore_value", "shape",
-                                                               "dtype", "key")
+                                                               "dtype", "key", *EXTRACT_OPTIONS)
                       if getattr(args, k, None) is not None]
         image_opts += [f"--{k.replace('_', '-')}" for k in ("invert", "pore_above", "keep_isolated")
                        if getattr(args, k, False)]
@@ -87,7 +138,7 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
         perc = percolating_cluster(image, axis)
         removed, work = float(perc.removed_fraction), perc.image
     t1 = time.perf_counter()
-    ext = extract_network(work)
+    ext = extract_network(work, **_extraction_kwargs(args))
     t_ext = time.perf_counter() - t1
     net = ext.network
     return {
@@ -103,6 +154,9 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
         "removed_fraction": removed,
         "connected_porosity": work.porosity,
         "network_porosity": float(ext.porosity),
+        "min_radius_voxels": ext.info.min_radius,
+        "extent_radii": ext.info.extent,
+        "merge_ratio": ext.info.merge_ratio,
         "seconds_read": t_read,
         "seconds_extract": t_ext,
     }
@@ -113,12 +167,14 @@ def network_from_args(args: argparse.Namespace) -> Network:
 
     A network file is loaded; an image (or the built-in sample when ``source`` is None) is read
     with the image options, reduced to the pore cluster percolating along ``args.axis`` unless
-    ``args.keep_isolated``, and extracted.
+    ``args.keep_isolated``, and extracted with the extraction options (``args.min_radius``,
+    ``args.extent``, ``args.merge_ratio``; ``None`` or missing = the default).
 
     Raises
     ------
     InputError
-        Unreadable file, bad image options, all-solid image, image options with a network file.
+        Unreadable file, bad image or extraction options, all-solid image, image or extraction
+        options with a network file.
     NetworkError
         No pore path along ``args.axis``, or no pore found by the extraction.
     """
@@ -219,6 +275,7 @@ def register(subparsers) -> None:
     p.add_argument("image", nargs="?", default=None, metavar="IMAGE",
                    help="segmented image (.npy .npz .raw+.mhd .raw .tif); default: the built-in Berea sample")
     _add_axis_args(p)
+    _add_extraction_args(p)
     p.add_argument("-o", "--output", default=None, metavar="NET.npz",
                    help="write the network (OpenPNM-keyed arrays + porefsi extras, readable by numpy.load)")
     p.add_argument("--vtk", default=None, metavar="NET.vtp",

@@ -294,7 +294,7 @@ def absolute_permeability(
     for label, val in (("viscosity", viscosity), ("dp", dp), ("rtol", rtol)):
         try:
             ok = bool(np.isfinite(val) and val > 0)
-        except TypeError:  # not a number (None, a string, ...)
+        except (TypeError, ValueError):  # not one number (None, a string, a list, ...)
             ok = False
         if not ok:
             raise InputError(f"{label} must be a positive finite number, got {val!r}")

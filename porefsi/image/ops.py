@@ -221,8 +221,9 @@ def percolating_cluster(image: VoxelImage, axis, *, connectivity: int = 6) -> Pe
     if both.size == 0:
         raise NetworkError(
             f"no pore path connects the {name}min and {name}max faces (axis {name}, {connectivity}-connected; "
-            f"{n} pore clusters, porosity {image.porosity:.4f}); try another axis, a larger crop, "
-            "or connectivity=26"
+            f"{n} pore clusters, porosity {image.porosity:.4f}); try another axis, a larger crop, or extracting "
+            "every cluster without this filter (CLI --axis, --keep-isolated; API: extract_network on the "
+            "image as is)"
         )
     keep_label = np.zeros(n + 1, dtype=bool)
     keep_label[both] = True

@@ -287,7 +287,7 @@ def extract_network(
     if balls.size == 0:
         raise NetworkError(
             f"no pore found: the largest ball radius in the image is {math.sqrt(max_d2):.3g} voxels, "
-            f"below min_radius={min_radius:g}; lower min_radius or use a finer image"
+            f"below min_radius={min_radius:g}; lower min_radius (>= 1; CLI --min-radius) or use a finer image"
         )
 
     t0 = time.perf_counter()
@@ -326,7 +326,8 @@ def extract_network(
     if conns.shape[0] == 0:
         raise NetworkError(
             f"the image yields {n_p} pore(s) and no throat: no two pore regions touch; use a larger "
-            "image, or lower extent (a shorter family reach splits long channels into chains)"
+            f"image, or lower extent={extent:g} (>= 1; CLI --extent): a shorter family reach splits long "
+            "channels into chains of pores"
         )
     r_throat = np.minimum(digital_radius(np.maximum(w, 1)), np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
     lt, lp = _conduit_lengths(centre, r_pore, conns, r_throat, point)
