@@ -25,6 +25,18 @@ def test_toml_round_trip(tmp_path):
     assert back.interface.tolerance == 2e-6 and back.solid.material == "neo-hookean"
 
 
+# List-valued keys: each element is validated, the message names the key and the element.
+LIST_ERRORS = [
+    ({"output": {"snapshot_times": ["a"]}}, r"output\.snapshot_times\[0\] must be a finite number s, got 'a'"),
+    ({"output": {"snapshot_times": [1.0, -2.0]}}, r"output\.snapshot_times\[1\] must be >= 0\.0 s"),
+    ({"output": {"snapshot_times": [1.0, True]}}, r"output\.snapshot_times\[1\] must be a finite number"),
+    ({"image": {"crop": [[0, 10.5], [0, 10], [0, 10]]}}, r"image\.crop bounds must be integers .* on x"),
+    ({"image": {"crop": [[0, 10], [7, 7], [0, 10]]}}, r"image\.crop on y must satisfy 0 <= start < stop"),
+    ({"image": {"crop": [[0, 10], [0, 10], [-2, 10]]}}, r"image\.crop on z must satisfy"),
+    ({"image": {"crop": [[0, 10], [0, 10], ["0", 10]]}}, r"image\.crop bounds must be integers"),
+]
+
+
 @pytest.mark.parametrize(
     ("data", "match"),
     [
@@ -39,11 +51,45 @@ def test_toml_round_trip(tmp_path):
         ({"output": {"figures": "yes"}}, r"output\.figures must be true or false"),
         ({"coupling": {"exchange_dt": 30.0}}, r"exceeds drainage\.t_end"),
         ({"image": {"crop": [[0, 10]]}}, r"image\.crop must be"),
-    ],
+    ] + LIST_ERRORS,
 )
 def test_bad_values_name_the_key(data, match):
     with pytest.raises(ConfigError, match=match):
         case_from_dict(data)
+
+
+@pytest.mark.parametrize(("data", "match"), LIST_ERRORS)
+def test_bad_list_elements_are_caught_by_the_loader(tmp_path, data, match):
+    """List elements are validated when the file is read (they used to fail later with a
+    TypeError traceback, or once the set-up had started, without the key's name)."""
+    p = tmp_path / "c.toml"
+    p.write_text(_toml(data))
+    with pytest.raises(ConfigError, match=match):
+        load_case(p)
+
+
+@pytest.mark.parametrize(("data", "match"), [*LIST_ERRORS[:2], *LIST_ERRORS[3:4],
+                                             ({"image": {"crop": [[0, 500], [0, 60], [0, 60]]}},
+                                              r"image\.crop .* reaches beyond the image \(120 x 120 x 120")])
+def test_cli_run_bad_list_is_one_line_exit_2(tmp_path, capsys, data, match):
+    """Through ``porefsi run``: exit code 2, one line on stderr naming the key, no traceback
+    (a crop beyond the image is found when the image is read, still before any computation)."""
+    import re
+
+    from porefsi.cli import main
+
+    p = tmp_path / "c.toml"
+    p.write_text(_toml(data))
+    assert main(["run", str(p), "-o", str(tmp_path / "o"), "--no-figures"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and re.search(match, err), err
+
+
+def _toml(data: dict) -> str:
+    import json
+
+    return "".join(f"[{sec}]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in vals.items())
+                   for sec, vals in data.items())
 
 
 def test_load_case_errors(tmp_path):

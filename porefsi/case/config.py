@@ -35,10 +35,16 @@ __all__ = [
 ]
 
 
-def _f(default, doc: str, *, choices=None, lo=None, hi=None, lo_open=False, unit: str = "", optional=False):
-    """A config field with its documentation and validation rule."""
+def _f(default, doc: str, *, choices=None, lo=None, hi=None, lo_open=False, unit: str = "", optional=False,
+       items=None):
+    """A config field with its documentation and validation rule.
+
+    ``items`` validates the elements of a list field: ``"number"`` (finite numbers, bounded by
+    ``lo``/``hi``, stored as floats) or ``"crop"`` (empty, or three ``[start, stop]`` pairs of
+    integers with ``0 <= start < stop``).
+    """
     meta = {"doc": doc, "choices": choices, "lo": lo, "hi": hi, "lo_open": lo_open, "unit": unit,
-            "optional": optional}
+            "optional": optional, "items": items}
     if isinstance(default, list):
         return dataclasses.field(default_factory=lambda: list(default), metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -54,7 +60,8 @@ class ImageConfig:
     threshold: float | None = _f(None, "grey images: pore = value <= threshold", optional=True)
     pore_value: float | None = _f(None, "labelled images: the value that marks pore", optional=True)
     invert: bool = _f(False, "binary images: 0 is pore (default 1/True = pore)")
-    crop: list = _f([], "[[x0, x1], [y0, y1], [z0, z1]] voxel bounds; empty = whole image")
+    crop: list = _f([], "[[x0, x1], [y0, y1], [z0, z1]] voxel bounds, integers with 0 <= x0 < x1 <= image size "
+                    "(the size is checked when the image is read); empty = whole image", items="crop")
     axis: str = _f("x", "flow axis (inlet at its low face, outlet at its high face)", choices=("x", "y", "z"))
 
 
@@ -152,7 +159,7 @@ class OutputConfig:
 
     dir: str = _f("porefsi-out", "output directory (relative to the working directory)")
     snapshot_times: list = _f([1.0, 3.0, 5.0, 15.0], "times of 3-D snapshots and figures (paper fig. 7)",
-                              unit="s")
+                              unit="s", items="number", lo=0.0)
     checkpoint_every: int = _f(5, "write a checkpoint every N exchange steps", lo=1)
     figures: bool = _f(True, "write PNG figures (matplotlib curves, pyvista scenes)")
     vtk: bool = _f(True, "write ParaView series (.pvd + .vtu solid, .vtp network)")
@@ -224,6 +231,7 @@ def _check(section: str, field: dataclasses.Field, value: Any, where: str) -> An
     elif isinstance(default, list):
         if not isinstance(value, list):
             raise ConfigError(f"{where}: {key} must be a list, got {value!r}")
+        return _check_items(key, m, value, where)
     if m["choices"] is not None and value not in m["choices"]:
         raise ConfigError(f"{where}: {key} = {value!r} is not one of {list(m['choices'])}")
     lo, hi = m["lo"], m["hi"]
@@ -232,6 +240,35 @@ def _check(section: str, field: dataclasses.Field, value: Any, where: str) -> An
         raise ConfigError(f"{where}: {key} must be {op} {lo}{_unit(m)}, got {value!r}")
     if hi is not None and value > hi:
         raise ConfigError(f"{where}: {key} must be <= {hi}{_unit(m)}, got {value!r}")
+    return value
+
+
+def _check_items(key: str, m: dict, value: list, where: str) -> list:
+    """Validate the elements of list field ``key`` by its ``items`` rule; return the list."""
+    if m["items"] == "number":
+        out = []
+        lo, hi = m["lo"], m["hi"]
+        for i, x in enumerate(value):
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+                raise ConfigError(f"{where}: {key}[{i}] must be a finite number{_unit(m)}, got {x!r}")
+            if lo is not None and (x < lo or (m["lo_open"] and x == lo)):
+                op = ">" if m["lo_open"] else ">="
+                raise ConfigError(f"{where}: {key}[{i}] must be {op} {lo}{_unit(m)}, got {x!r}")
+            if hi is not None and x > hi:
+                raise ConfigError(f"{where}: {key}[{i}] must be <= {hi}{_unit(m)}, got {x!r}")
+            out.append(float(x))
+        return out
+    if m["items"] == "crop" and value:
+        form = "[[x0, x1], [y0, y1], [z0, z1]] (voxel indices, integers, 0 <= start < stop)"
+        if len(value) != 3 or any(not isinstance(c, list) or len(c) != 2 for c in value):
+            raise ConfigError(f"{where}: {key} must be {form}, got {value!r}")
+        for ax, (a, b) in zip("xyz", value, strict=True):
+            if any(isinstance(v, bool) or not isinstance(v, int) for v in (a, b)):
+                raise ConfigError(f"{where}: {key} bounds must be integers (voxel indices), got [{a!r}, {b!r}] "
+                                  f"on {ax}; write e.g. [[0, 60], [0, 60], [0, 60]]")
+            if not 0 <= a < b:
+                raise ConfigError(f"{where}: {key} on {ax} must satisfy 0 <= start < stop, got [{a}, {b}]")
+        return [list(c) for c in value]
     return value
 
 
@@ -275,13 +312,8 @@ def case_from_dict(data: dict, *, name: str = "case", where: str = "case") -> Ca
 
 
 def _cross_check(case: Case, where: str) -> None:
-    crop = case.image.crop
-    if crop and (len(crop) != 3 or any(not isinstance(c, list) or len(c) != 2 for c in crop)):
-        raise ConfigError(f"{where}: image.crop must be [[x0, x1], [y0, y1], [z0, z1]], got {crop!r}")
     if case.image.threshold is not None and case.image.pore_value is not None:
         raise ConfigError(f"{where}: give image.threshold or image.pore_value, not both")
-    if any(t < 0 for t in case.output.snapshot_times):
-        raise ConfigError(f"{where}: output.snapshot_times must be >= 0 s")
     if case.coupling.exchange_dt > case.drainage.t_end:
         raise ConfigError(
             f"{where}: coupling.exchange_dt = {case.coupling.exchange_dt} s exceeds drainage.t_end = "

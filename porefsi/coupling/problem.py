@@ -16,7 +16,7 @@ from porefsi.coupling.interface import (
     hull_interface,
     traction_interface,
 )
-from porefsi.errors import InputError
+from porefsi.errors import ConfigError, InputError
 from porefsi.flow.fluids import Fluids
 from porefsi.image.io import load_sample, read_image
 from porefsi.image.ops import crop, percolating_cluster
@@ -94,6 +94,10 @@ def load_case_image(case: Case) -> VoxelImage:
         if ic.voxel_size is not None:
             img = VoxelImage(img.phases, ic.voxel_size, img.origin)
     if ic.crop:
+        over = [f"{ax}: stop {c[1]} > {n}" for ax, c, n in zip("xyz", ic.crop, img.shape, strict=True) if c[1] > n]
+        if over:
+            raise ConfigError(f"image.crop {ic.crop!r} reaches beyond the image ({img.shape[0]} x {img.shape[1]} x "
+                              f"{img.shape[2]} voxels; {', '.join(over)}); keep each stop <= the image size")
         img = crop(img, [c[0] for c in ic.crop], [c[1] for c in ic.crop])
     return img
 
