@@ -117,7 +117,7 @@ class DrainageSimulator:
     >>> net = lattice_network((6, 6, 1), 1e-4, np.random.default_rng(0))
     >>> sim = DrainageSimulator(net, rate=1e-12)
     >>> state = sim.advance_to(0.5)
-    >>> 0.0 <= state.nw_saturation.min() <= state.nw_saturation.max() <= 1.0
+    >>> bool(0.0 <= state.nw_saturation.min() <= state.nw_saturation.max() <= 1.0)
     True
     """
 
