@@ -7,7 +7,7 @@ import scipy.linalg as sl
 from scipy.optimize import brentq
 
 from porefsi.integrators.system import SecondOrderSystem
-from porefsi.solid.bc import Fixed, Prescribed, Roller, Traction, uniaxial_bcs
+from porefsi.solid.bc import Affine, Fixed, Prescribed, Roller, Traction, face_nodes, uniaxial_bcs
 from porefsi.solid.materials import NeoHookean, StVenantKirchhoff
 from porefsi.solid.model import SolidModel
 from porefsi.solid.shapes import box_mesh, shell_octant_mesh
@@ -267,3 +267,88 @@ def test_p2_face_nodes_are_the_tagged_facets_nodes():
         plane = np.flatnonzero(np.isclose(model.dof_points[:, ax], m.box[side, ax], rtol=0, atol=1e-15))
         np.testing.assert_array_equal(face_nodes(m, model.dof_points, face), plane)
     assert len(model.constraints.dofs) == 3 * int(np.sum(np.isclose(model.dof_points[:, 2], 0.0)))
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_traction_vector_total_load_and_reaction(order):
+    """A uniform traction vector t with shear components on the zmax face of a box fixed at zmin:
+    the consistent nodal loads add up to t A (A = 1e-4 x 2e-4 m^2, the zmax face), and at
+    equilibrium the support reaction on zmin is -t A (global force balance: the internal forces are
+    self-equilibrated). Also on a lateral face (xmax, A = 2e-4 x 3e-4 m^2)."""
+    m = box_mesh((2, 2, 3), (1e-4, 2e-4, 3e-4))
+    t = np.array([3e5, -2e5, 1e5])  # Pa: small strains (t / E ~ 1e-5), linear regime
+    for face, area in (("zmax", 1e-4 * 2e-4), ("xmax", 2e-4 * 3e-4)):
+        model = SolidModel(m, MAT, [Fixed("zmin")], tractions=[Traction(face, traction=tuple(t))], order=order)
+        f = model.full_external_force(0.0).reshape(-1, 3)
+        np.testing.assert_allclose(f.sum(axis=0), t * area, rtol=1e-12)
+        # only the nodes of the loaded face carry load
+        loaded = np.zeros(len(f), bool)
+        loaded[face_nodes(m, model.dof_points, face)] = True
+        assert np.all(f[~loaded] == 0) and np.any(f[loaded] != 0)
+        u, _ = solve_static(model, 0.0, rtol=1e-12)
+        np.testing.assert_allclose(model.reactions(u, 0.0)["zmin"], -t * area, rtol=1e-9)
+
+
+def _cauchy_closed_form(mat, F):
+    """Cauchy stress of a homogeneous deformation F (3, 3), written independently of the code.
+
+    SVK: sigma = J^-1 F S F^T, S = lambda tr(E) I + 2 mu E, E = (F^T F - I)/2 (Holzapfel 2000,
+    sec. 6.5). Neo-Hookean: sigma = (mu / J)(F F^T - I) + (lambda ln J / J) I (Bonet & Wood 2008,
+    eq. 6.29)."""
+    J = np.linalg.det(F)
+    if isinstance(mat, StVenantKirchhoff):
+        E = 0.5 * (F.T @ F - np.eye(3))
+        S = mat.lam * np.trace(E) * np.eye(3) + 2 * mat.mu * E
+        return F @ S @ F.T / J
+    return mat.mu / J * (F @ F.T - np.eye(3)) + mat.lam * np.log(J) / J * np.eye(3)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("mat", [StVenantKirchhoff(20e9, 0.28), NeoHookean(20e9, 0.28)], ids=["svk", "nh"])
+def test_cauchy_shear_components_on_a_general_affine_field(mat, order):
+    """A general affine field u = G X (every component of G nonzero: shear, stretch, rotation, a
+    few per cent) imposed on the whole boundary: every element carries the closed-form Cauchy
+    stress, all nine components (shear ones of the order of the normal ones), symmetric, and the
+    von Mises value of the closed form."""
+    G = np.array([[0.02, 0.03, -0.02], [0.01, -0.01, 0.025], [-0.015, 0.02, 0.005]])
+    m = box_mesh((2, 2, 2), (1e-4, 1e-4, 1e-4))
+    model = SolidModel(m, mat, [Affine(f, G) for f in ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")],
+                       order=order)
+    u, info = solve_static(model, 0.0, rtol=1e-13)
+    sig = element_cauchy(model, u, 0.0)
+    exact = _cauchy_closed_form(mat, np.eye(3) + G)
+    off = ~np.eye(3, dtype=bool)
+    assert np.abs(exact[off]).min() > 0.2 * np.abs(exact).max()  # shear of the order of the normal stresses
+    np.testing.assert_allclose(sig, np.broadcast_to(exact, sig.shape), rtol=0, atol=1e-9 * np.abs(exact).max())
+    np.testing.assert_allclose(sig, sig.transpose(0, 2, 1), rtol=0, atol=1e-9 * np.abs(exact).max())
+    s = exact - np.trace(exact) / 3 * np.eye(3)
+    np.testing.assert_allclose(von_mises(sig), np.sqrt(1.5 * np.sum(s * s)), rtol=1e-9)
+
+
+def test_nodal_von_mises_is_volume_weighted():
+    """Nodal von Mises on a graded mesh (the Lame shell octant, element volumes vary ~9x) from a
+    non-uniform field (pressurised shell: von Mises falls like r^-3): equal to a naive volume-
+    weighted twin, sum_e V_e s_e / sum_e V_e over the elements at each node, and measurably
+    different from the unweighted mean (so a dropped weight would fail)."""
+    from porefsi.solid.mesh import tet_volumes
+
+    m = shell_octant_mesh(1.0, 2.0, 6)
+    mat = StVenantKirchhoff(1.0, 0.3)
+    model = SolidModel(m, mat, [Roller("xmin"), Roller("ymin"), Roller("zmin")],
+                       tractions=[Traction("pore_wall", pressure=1e-3)])
+    u = model.make_solver(model.tangent(np.zeros(model.n_dofs), 0.0))(model.external_force(0.0))
+    vm = von_mises(element_cauchy(model, u, 0.0))
+    V = tet_volumes(m.points, m.tets)
+    assert V.max() / V.min() > 5 and vm.max() / vm.min() > 3
+    twin = np.zeros(m.n_nodes)
+    plain = np.zeros(m.n_nodes)
+    for a in range(m.n_nodes):
+        els = np.flatnonzero(np.any(m.tets == a, axis=1))
+        twin[a] = np.sum(V[els] * vm[els]) / np.sum(V[els])
+        plain[a] = vm[els].mean()
+    nodal = nodal_average(m, vm)
+    np.testing.assert_allclose(nodal, twin, rtol=1e-12)
+    assert np.abs(plain - twin).max() > 1e-3 * vm.max()
+    # trailing dimensions: the (Ne, 3, 3) stress averages component by component
+    sig = element_cauchy(model, u, 0.0)
+    np.testing.assert_allclose(nodal_average(m, sig)[:, 0, 1], nodal_average(m, sig[:, 0, 1]), rtol=1e-12)
