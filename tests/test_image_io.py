@@ -473,3 +473,15 @@ def test_tiff_lzw_needs_imagecodecs_or_reads(tmp_path, rng):
             read_image(tmp_path / "lzw.tif", voxel_size=1e-6)
     else:
         np.testing.assert_array_equal(read_image(tmp_path / "lzw.tif", voxel_size=1e-6).phases, vol)
+
+
+def test_voxel_image_never_freezes_or_aliases_the_callers_array():
+    ph = np.zeros((4, 3, 2), dtype=np.uint8)
+    ph[1:3, :, :] = 1
+    img = VoxelImage(ph, 1e-6)
+    assert ph.flags.writeable  # the caller's array is untouched
+    assert not img.phases.flags.writeable
+    ph[0, 0, 0] = 1  # and changing it later does not change the image
+    assert img.phases[0, 0, 0] == 0
+    shared = VoxelImage(img.phases, 1e-6)  # a read-only array (another image's) is shared
+    assert shared.phases is img.phases

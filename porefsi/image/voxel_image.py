@@ -36,7 +36,8 @@ class VoxelImage:
     Parameters
     ----------
     phases : ndarray of uint8, shape (nx, ny, nz)
-        1 where the voxel is pore space, 0 where it is solid. C-contiguous; not copied.
+        1 where the voxel is pore space, 0 where it is solid. A writable array of the caller's is
+        copied (the caller's array is never frozen or aliased); a read-only one is shared.
     voxel_size : float
         Edge length of a cubic voxel, m. Must be positive and finite.
     origin : ndarray of float, shape (3,), optional
@@ -46,7 +47,7 @@ class VoxelImage:
 
     Notes
     -----
-    The array is made read-only so that a ``VoxelImage`` can be shared between stages.
+    The stored array is read-only so that a ``VoxelImage`` can be shared between stages.
     """
 
     phases: np.ndarray
@@ -78,6 +79,8 @@ class VoxelImage:
                 f"{int(ph.max())}; segment it with porefsi.image.segment(..., threshold=...)"
             )
         ph = np.ascontiguousarray(ph)
+        if ph.flags.writeable and isinstance(self.phases, np.ndarray) and np.shares_memory(ph, self.phases):
+            ph = ph.copy()  # never freeze (or alias) the caller's array
         ph.setflags(write=False)
         try:
             vs = float(self.voxel_size)
