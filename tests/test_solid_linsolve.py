@@ -143,3 +143,35 @@ def test_solves_pin_blas_to_one_thread():
         assert set(blas_threads()) == {2}
     assert seen and set(seen) == {1}
     np.testing.assert_allclose(A @ x, np.ones(10), rtol=1e-8)
+
+
+def test_auto_factorises_a_reused_matrix_and_keeps_amg_for_changing_ones(rock_model, rng):
+    """linear_solver="auto" above 3000 dofs: a matrix that keeps serving solves (a frozen TDG M*)
+    is factorised after FACTOR_AFTER_SOLVES AMG-CG solves and the factor used from then on;
+    matrices used once each (Newton tangents) never are; nothing is factorised above
+    direct_max_dofs. Same answers to the CG tolerance either way."""
+    from porefsi.solid.linsolve import FACTOR_AFTER_SOLVES, AdaptiveSolverFactory
+
+    m = rock_model
+    assert m.linear_solver == "auto" and m.n_dofs > 3000
+    K = m.tangent(np.zeros(m.n_dofs), 1.0)
+    A = (K + sp.diags(1e-2 * K.diagonal())).tocsr()  # M*-like: K plus a mass-like diagonal
+    b = rng.standard_normal(m.n_dofs)
+    solve = m.make_solver(A)
+    auto = m._adaptive
+    xs = [solve(b) for _ in range(FACTOR_AFTER_SOLVES)]
+    assert auto.n_factorizations == 0 and m.solver_factory.n_setups == 1
+    x_lu = solve(b)
+    assert auto.n_factorizations == 1
+    np.testing.assert_allclose(x_lu, xs[-1], rtol=0, atol=1e-6 * np.abs(x_lu).max())
+    assert np.linalg.norm(A @ x_lu - b) <= 1e-10 * np.linalg.norm(b)
+    solve(b)
+    assert auto.n_factorizations == 1  # the factor is reused
+    for k in range(3):  # a new matrix per solve: AMG-CG on the shared hierarchy, no factorisation
+        m.make_solver(A + sp.diags(1e-3 * (k + 1) * K.diagonal()))(b)
+    assert auto.n_factorizations == 1
+    capped = AdaptiveSolverFactory(m.solver_factory, factor_after=0, direct_max_dofs=m.n_dofs - 1)
+    s = capped(A)
+    s(b)
+    s(b)
+    assert capped.n_factorizations == 0

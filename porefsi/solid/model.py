@@ -21,11 +21,20 @@ from porefsi.errors import InputError
 from porefsi.solid import forms
 from porefsi.solid.assembly import P1Assembler, submatrix_selector
 from porefsi.solid.bc import Constraints, Traction
-from porefsi.solid.linsolve import AMGSolverFactory, direct_solver_factory, jacobi_solver_factory
+from porefsi.solid.linsolve import (
+    AdaptiveSolverFactory,
+    AMGSolverFactory,
+    direct_solver_factory,
+    jacobi_solver_factory,
+)
 from porefsi.solid.materials import Material
 from porefsi.solid.mesh import FACET_TAGS, SolidMesh
 
 __all__ = ["SolidModel"]
+
+#: Below this many free dofs "auto" factorises every matrix (a factorisation costs less than a
+#: few CG solves there).
+SMALL_DOFS = 3000
 
 
 class SolidModel:
@@ -48,8 +57,9 @@ class SolidModel:
     backend : {"auto", "numba", "skfem"}
         Assembly route for P1 ("auto" = numba); P2 always uses scikit-fem.
     linear_solver : {"auto", "amg", "jacobi", "direct"}
-        What :meth:`make_solver` returns: "auto" is a sparse LU below 3000 free dofs and AMG-CG
-        above; "jacobi" (Jacobi-CG) is competitive up to ~1e5 dofs and for mass-dominated M + c K.
+        What :meth:`make_solver` returns (see there): "auto" picks per matrix; "amg" is AMG-CG
+        always, "direct" a sparse LU per matrix, "jacobi" Jacobi-CG (cheapest for strongly
+        mass-dominated M + c K, omega dt ~ 10).
 
     Notes
     -----
@@ -95,6 +105,7 @@ class SolidModel:
         self._mass = None
         self._cache = None
         self._solver_factory = None
+        self._adaptive = None
 
     # ---- loads -------------------------------------------------------------------------
     def _set_nodal(self, F):
@@ -207,18 +218,26 @@ class SolidModel:
     def make_solver(self, A: sp.spmatrix):
         """``solve(b) -> x`` for an SPD free-dof matrix A (e.g. K or M + c K).
 
-        Per ``linear_solver``: with "auto", small systems (< 3000 dofs) use a sparse LU, larger
-        ones CG preconditioned by pyamg smoothed aggregation with rigid-body modes, the hierarchy
-        reused across calls while CG converges within 40 iterations (see
-        :class:`~porefsi.solid.linsolve.AMGSolverFactory`).
+        Per ``linear_solver``. "auto": below :data:`SMALL_DOFS` free dofs a sparse LU (factoring
+        is cheap there); above, :class:`~porefsi.solid.linsolve.AdaptiveSolverFactory`: CG
+        preconditioned by pyamg smoothed aggregation with rigid-body modes (the hierarchy shared
+        and reused across matrices while CG converges within 40 iterations) for a matrix's first
+        20 solves, so Newton tangents and per-step TDG tangents stay on AMG-CG; a matrix that
+        keeps serving solves (a frozen TDG :math:`M^*`) is then factorised once, up to 1e5 dofs
+        (measured on the 57k-tet sample: 0.12 s per TDG step with the factor vs 0.3-0.9 s with
+        AMG-CG; docs/solid.md section 8). Above 1e5 dofs it stays on AMG-CG (factor memory).
         """
         kind = self.linear_solver
-        if kind == "auto":
-            kind = "direct" if self.n_dofs < 3000 else "amg"
+        if kind == "auto" and self.n_dofs < SMALL_DOFS:
+            kind = "direct"
         if kind == "direct":
             return direct_solver_factory()(A)
         if kind == "jacobi":
             return jacobi_solver_factory()(A)
+        if kind == "auto":
+            if self._adaptive is None:
+                self._adaptive = AdaptiveSolverFactory(self.solver_factory)
+            return self._adaptive(A)
         return self.solver_factory(A)
 
     @property
