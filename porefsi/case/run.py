@@ -14,6 +14,7 @@ Outputs in the run directory:
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import sys
@@ -27,7 +28,7 @@ from porefsi._version import __version__
 from porefsi.case.config import Case, case_from_dict, case_to_dict, case_to_toml
 from porefsi.coupling.loop import TIMESERIES_COLUMNS, CoupledRun, ExchangeRecord
 from porefsi.coupling.problem import build_problem
-from porefsi.errors import ConfigError, PorefsiError
+from porefsi.errors import ConfigError
 from porefsi.io import results
 from porefsi.io.network_vtk import write_network_vtp
 
@@ -44,21 +45,37 @@ class RunOutput:
 
 
 class _Progress:
-    """A one-line progress bar with ETA on stderr (only when it is a terminal, or when forced)."""
+    """A one-line progress bar with ETA on stderr (only when it is a terminal, or when forced).
 
-    def __init__(self, total: int, enabled: bool):
-        self.total, self.enabled, self.t0 = total, enabled, time.perf_counter()
+    Parameters
+    ----------
+    total : int
+        Exchange steps of the whole run.
+    enabled : bool
+        Draw the bar.
+    start : int, default 0
+        Steps already done when this process started (restored from a checkpoint): the ETA is
+        the time per step *of this process* times the steps left.
+    stream : file, optional
+        Where to draw (default ``sys.stderr`` at the time of each update).
+    """
+
+    def __init__(self, total: int, enabled: bool, start: int = 0, stream=None):
+        self.total, self.enabled, self.start, self.stream = total, enabled, start, stream
+        self.t0 = time.perf_counter()
 
     def update(self, done: int, t: float, extra: str = "") -> None:
+        """Redraw after ``done`` of ``total`` steps, at simulated time ``t`` (s)."""
         if not self.enabled:
             return
+        out = self.stream if self.stream is not None else sys.stderr
         el = time.perf_counter() - self.t0
-        eta = el / max(done, 1) * (self.total - done)
+        eta = el / max(done - self.start, 1) * (self.total - done)
         bar = "#" * int(30 * done / self.total)
-        sys.stderr.write(f"\r[{bar:<30}] {done}/{self.total} t={t:.3g} s  {el:6.1f} s, ETA {eta:6.1f} s {extra}")
+        out.write(f"\r[{bar:<30}] {done}/{self.total} t={t:.3g} s  {el:6.1f} s, ETA {eta:6.1f} s {extra}")
         if done == self.total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
+            out.write("\n")
+        out.flush()
 
 
 def _snapshot_due(case: Case, t0: float, t1: float, last: bool) -> bool:
@@ -138,8 +155,16 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     ConfigError
         ``resume`` without a checkpoint, or with a different case.
     PorefsiError
-        Any failure of the run; the last checkpoint and the outputs so far are kept, and
-        ``summary.json`` records the error.
+        A failure of the run (solver libraries' exceptions arrive as ``ConvergenceError``).
+        On *any* exception (also a bug's or ``KeyboardInterrupt``) the last checkpoint and the
+        outputs so far are kept, ``summary.json`` records ``status`` (``"failed"`` or
+        ``"interrupted"``) and the error, and the exception is re-raised.
+
+    Notes
+    -----
+    ``wall_seconds`` in the summary is cumulative over the processes of a resumed run: each
+    interrupted process counts up to its last checkpoint (the steps it did after that are
+    redone, and counted, by the resuming process); ``wall_seconds_this_process`` is this call's.
     """
     t_start = time.perf_counter()
     out = Path(out if out is not None else case.output.dir)
@@ -147,6 +172,7 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     ckpt = out / "checkpoint.npz"
     progress = sys.stderr.isatty() if progress is None else progress
     figures = case.output.figures if figures is None else figures
+    wall_before = 0.0  # wall time of earlier processes of this run, up to their last checkpoint
     if resume:
         if not ckpt.is_file():
             raise ConfigError(f"--resume: no checkpoint in {str(out)!r}; run without --resume to start")
@@ -155,34 +181,42 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
         if case_to_dict(saved) != case_to_dict(case):
             raise ConfigError(f"--resume: the case differs from the one that started {str(out)!r}; "
                               "resume with the same case file or start a new run directory")
+        wall_before = float(meta.get("wall_seconds", 0.0))
     else:
         for stale in ("checkpoint.npz", "summary.json", "timeseries.csv", "solid.pvd", "network.pvd"):
             (out / stale).unlink(missing_ok=True)
     results.atomic_write_text(out / "case.toml", case_to_toml(case))
 
-    problem = build_problem(case)
-    if resume:
-        run = CoupledRun.restore(problem, arrays, meta)
-        rows = meta["rows"]
-        snapshots = _load_snapshots(arrays, meta)
-        series = {k: results.PvdSeries.read(out / f"{k}.pvd") for k in ("solid", "network")}
-        for s in series.values():
-            s.truncate(run.t)
-        setup_seconds = meta["setup_seconds"]
-    else:
-        run = CoupledRun(problem)
-        rows, snapshots = [], []
-        series = {k: results.PvdSeries(out / f"{k}.pvd") for k in ("solid", "network")}
-        setup_seconds = dict(problem.seconds)
-        rec0 = run.initial_record()
-        rows.append(rec0.row)
-        if case.output.vtk:
-            _write_snapshot(out, rec0, run, series)
-        snapshots.append(_snapshot(rec0))
-    bar = _Progress(run.n_steps, progress)
+    def elapsed() -> float:
+        return wall_before + time.perf_counter() - t_start
+
+    run = None
+    rows: list = []
+    setup_seconds: dict = {}
     status, error = "completed", None
-    n_done = 0
     try:
+        problem = build_problem(case)
+        if resume:
+            run = CoupledRun.restore(problem, arrays, meta)
+            # JSON keeps NaN as null: give the restored rows their NaN back
+            rows = [{k: float("nan") if v is None else v for k, v in r.items()} for r in meta["rows"]]
+            snapshots = _load_snapshots(arrays, meta)
+            series = {k: results.PvdSeries.read(out / f"{k}.pvd") for k in ("solid", "network")}
+            for s in series.values():
+                s.truncate(run.t)
+            setup_seconds = meta["setup_seconds"]
+        else:
+            run = CoupledRun(problem)
+            rows, snapshots = [], []
+            series = {k: results.PvdSeries(out / f"{k}.pvd") for k in ("solid", "network")}
+            setup_seconds = dict(problem.seconds)
+            rec0 = run.initial_record()
+            rows.append(rec0.row)
+            if case.output.vtk:
+                _write_snapshot(out, rec0, run, series)
+            snapshots.append(_snapshot(rec0))
+        bar = _Progress(run.n_steps, progress, start=run.step_index)
+        n_done = 0
         for rec in run.steps():
             rows.append(rec.row)
             t_prev = rows[-2]["time_s"]
@@ -195,19 +229,23 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             if on_record is not None:
                 on_record(rec)
             if run.step_index % case.output.checkpoint_every == 0 or last:
-                _save(ckpt, run, case, rows, snapshots, setup_seconds)
+                _save(ckpt, run, case, rows, snapshots, setup_seconds, elapsed())
             bar.update(run.step_index, rec.t, f"Sw={rec.row['sw']:.3f}")
             n_done += 1
             if stop_after is not None and n_done >= stop_after:
                 status = "interrupted"
                 break
-    except PorefsiError as exc:
-        status, error = "failed", f"{type(exc).__name__}: {exc}"
-        _write_summary(out, case, run, rows, setup_seconds, t_start, status, error, [])
+    except BaseException as exc:
+        # Whatever stopped the run (a porefsi error, a solver library's, a bug, Ctrl-C): record it
+        # next to the last checkpoint (kept as it was) and the outputs so far, then re-raise.
+        status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+        error = f"{type(exc).__name__}: {exc}"
+        with contextlib.suppress(Exception):  # never hide the original error behind a write error
+            _write_summary(out, case, run, rows, setup_seconds, t_start, wall_before, status, error, [])
         raise
     ts = _columns(rows)
     made = _figures(out, ts, snapshots, run, progress) if (figures and status == "completed") else []
-    summary = _write_summary(out, case, run, rows, setup_seconds, t_start, status, error, made)
+    summary = _write_summary(out, case, run, rows, setup_seconds, t_start, wall_before, status, error, made)
     return RunOutput(summary, out, ts)
 
 
@@ -220,13 +258,14 @@ def _snapshot(rec: ExchangeRecord) -> dict:
 _SNAP_KEYS = ("coords", "radius", "nw_saturation", "displacement", "von_mises", "force")
 
 
-def _save(path, run: CoupledRun, case: Case, rows, snapshots, setup_seconds) -> None:
+def _save(path, run: CoupledRun, case: Case, rows, snapshots, setup_seconds, wall_seconds: float) -> None:
     arrays, meta = run.checkpoint()
     for i, s in enumerate(snapshots):
         for k in _SNAP_KEYS:
             arrays[f"snap{i}_{k}"] = s[k]
     meta.update(case=case_to_dict(case), rows=rows, setup_seconds=setup_seconds,
-                snapshots=[{"t": s["t"], "step": s["step"]} for s in snapshots], version=__version__)
+                snapshots=[{"t": s["t"], "step": s["step"]} for s in snapshots], version=__version__,
+                wall_seconds=wall_seconds)
     results.save_checkpoint(path, arrays, meta)
 
 
@@ -238,7 +277,16 @@ def _columns(rows: list[dict]) -> dict:
     return {k: [r[k] for r in rows] for k in TIMESERIES_COLUMNS}
 
 
-def _write_summary(out, case, run: CoupledRun, rows, setup_seconds, t_start, status, error, figures) -> dict:
+def _write_summary(out, case, run: CoupledRun | None, rows, setup_seconds, t_start, wall_before, status, error,
+                   figures) -> dict:
+    this_process = time.perf_counter() - t_start
+    wall_seconds = wall_before + this_process
+    if run is None:  # failed while setting up: what is known
+        summary = {"status": status, "error": error, "case": case.name, "porefsi_version": __version__,
+                   "wall_seconds": wall_seconds, "wall_seconds_this_process": this_process,
+                   "n_exchange_steps": 0, "figures": figures}
+        results.write_json(out / "summary.json", summary)
+        return json.loads(json.dumps(results.jsonable(summary)))
     p = run.problem
     last = rows[-1] if rows else {}
     mass = max((r["mass_balance_error"] for r in rows), default=0.0)
@@ -249,7 +297,8 @@ def _write_summary(out, case, run: CoupledRun, rows, setup_seconds, t_start, sta
         "error": error,
         "case": case.name,
         "porefsi_version": __version__,
-        "wall_seconds": time.perf_counter() - t_start,
+        "wall_seconds": wall_seconds,
+        "wall_seconds_this_process": this_process,
         "seconds_by_stage": {**setup_seconds, **run.seconds},
         "n_pores": p.network.n_pores,
         "n_throats": p.network.n_throats,

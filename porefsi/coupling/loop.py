@@ -129,11 +129,19 @@ class CoupledRun:
         self.v = np.zeros(self.model.n_dofs)
         self._stepper = None
         self._static_lu = None
+        # Where the reused solid factorisations were built: (u, t) of the static tangent, and of
+        # the TDG stepper's tangent (plus whether the stepper will refresh it at the next step).
+        # Checkpointed, so a resumed run rebuilds the very same matrices and repeats the
+        # uninterrupted run bit for bit instead of agreeing only to the Newton tolerance.
+        self._static_lu_at: tuple[np.ndarray, float] | None = None
+        self._tdg_system = _TangentLog(self.model)
+        self._tdg_stale = True
         self._update_nodes = None  # per-pore nodes of the geometric update (built on first use)
         # extractions by voxel-image digest (re-extraction mode), seeded with the reference image's
         self._extractions = {hashlib.sha1(np.ascontiguousarray(problem.image.phases).tobytes()).digest():
                              problem.extraction}
         self.n_extractions = 0  # re-extractions actually computed (not served from the above)
+        self.n_extractions_reused = 0  # re-extractions served from the digest cache
         self.seconds = dict.fromkeys(("fluid", "interface", "solid", "update", "stress", "permeability"), 0.0)
         self.precoupling_history: list[float] = []
 
@@ -141,9 +149,16 @@ class CoupledRun:
     def _stepper_for(self, dt: float):
         if self._stepper is None or self._stepper.dt != dt:
             cc = self.problem.case.coupling
-            self._stepper = TDGStepper(self.model, dt, n_iter=cc.tdg_iterations, make_solver=self.model.make_solver,
+            self._stepper = TDGStepper(self._tdg_system, dt, n_iter=cc.tdg_iterations, make_solver=self._make_solver,
                                        tangent="auto", load_rule=cc.tdg_load_rule)
         return self._stepper
+
+    def _make_solver(self, A):
+        """The model's linear solver for A; a solver-library failure becomes a ConvergenceError."""
+        try:
+            return self.model.make_solver(A)
+        except _SOLVER_FAILURES as exc:
+            raise _solver_failure(exc, self.t) from exc
 
     def load_times(self, t0: float, dt: float) -> tuple[float, float]:
         """Times within the step at which the solid needs the fluid load (the last is always t0 + dt)."""
@@ -159,7 +174,9 @@ class CoupledRun:
             return u1, (u1 - u) / dt
         st = self._stepper_for(dt)
         loads = tuple(self.model.with_nodal_forces(forces[s]).external_force(s) for s in st.load_times(t0))
-        u1, v1, _ = st.step(u, v, t0, loads=loads)
+        u1, v1, info = st.step(u, v, t0, loads=loads)
+        # the "auto" tangent policy refreshes at the next step after a failed secant check
+        self._tdg_stale = info.extra.get("tangent_defect", 0.0) > st.tangent_rtol
         return u1, v1
 
     def _static_solve(self, model, t: float, u0: np.ndarray, t_prev: float | None = None, rtol: float = 1e-8,
@@ -175,8 +192,10 @@ class CoupledRun:
         scale = max(float(np.linalg.norm(fext)), float(np.linalg.norm(model.internal_force(np.zeros_like(u), t))),
                     1e-300)
         for refresh in (False, True):
-            if self._static_lu is None or refresh:
-                self._static_lu = self.model.make_solver(model.tangent(u, t))
+            if refresh or (self._static_lu is None and self._static_lu_at is None):
+                self._static_lu, self._static_lu_at = None, (u.copy(), t)
+            if self._static_lu is None:  # built here, or rebuilt from a checkpoint's (u, t)
+                self._static_lu = self._make_solver(model.tangent(*self._static_lu_at))
             x = u.copy()
             prev = np.inf
             for _ in range(max_iter):
@@ -188,8 +207,11 @@ class CoupledRun:
                     break
                 prev = nr
                 x = x - self._static_lu(r)
-        u1, _ = solve_static(model, t, u0=u, t_prev=t_prev, rtol=rtol)
-        self._static_lu = None
+        try:
+            u1, _ = solve_static(model, t, u0=u, t_prev=t_prev, rtol=rtol)
+        except _SOLVER_FAILURES as exc:
+            raise _solver_failure(exc, t) from exc
+        self._static_lu = self._static_lu_at = None
         return u1
 
     # ---- network ------------------------------------------------------------------------
@@ -211,7 +233,9 @@ class CoupledRun:
         # being ~1e-6 voxel) reuses its extraction instead of repeating it.
         key = hashlib.sha1(np.ascontiguousarray(img.phases).tobytes()).digest()
         ex = self._extractions.get(key)
-        if ex is None:
+        if ex is not None:
+            self.n_extractions_reused += 1
+        else:
             ex = extract_network(percolating_cluster(img, p.case.image.axis).image)
             self.n_extractions += 1
             if len(self._extractions) >= 4:
@@ -287,7 +311,10 @@ class CoupledRun:
                 sim = self._carry(sim, net_k, self.labels, lab_k)
                 lab_sim = lab_k
                 later = sorted((set(self.load_times(t0, dt)) | {t1}) - {t0})
-                pressures = {s: _pressure(sim.advance_to(s)) for s in later}
+                try:
+                    pressures = {s: _pressure(sim.advance_to(s)) for s in later}
+                except _SOLVER_FAILURES as exc:
+                    raise _solver_failure(exc, t0, "fluid") from exc
                 secs["fluid"] += time.perf_counter() - tt
                 tt = time.perf_counter()
                 forces = {t0: F0} | {s: itf_k.nodal_forces(P) for s, P in pressures.items()}
@@ -378,7 +405,16 @@ class CoupledRun:
             "network": np.frombuffer(pickle.dumps(self.network, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
             "interface": np.frombuffer(pickle.dumps(self.interface, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
         }
-        meta = {"step_index": self.step_index, "t": self.t, "seconds": self.seconds}
+        meta = {"step_index": self.step_index, "t": self.t, "seconds": self.seconds,
+                "n_extractions": self.n_extractions, "n_extractions_reused": self.n_extractions_reused}
+        # where the reused factorisations were built (restore rebuilds the same matrices)
+        if self._static_lu_at is not None:
+            arrays["static_lu_u"] = self._static_lu_at[0]
+            meta["static_lu_t"] = self._static_lu_at[1]
+        at = self._tdg_system.last
+        if self._stepper is not None and at is not None and not self._tdg_stale:
+            arrays["tdg_tangent_u"] = at[0]
+            meta["tdg_tangent_t"] = at[1]
         return arrays, meta
 
     @classmethod
@@ -394,7 +430,68 @@ class CoupledRun:
         run.step_index = int(meta["step_index"])
         run.t = float(meta["t"])
         run.seconds = dict(meta["seconds"])
+        run.n_extractions = int(meta.get("n_extractions", 0))
+        run.n_extractions_reused = int(meta.get("n_extractions_reused", 0))
+        if "static_lu_u" in arrays:
+            run._static_lu_at = (np.array(arrays["static_lu_u"], dtype=float), float(meta["static_lu_t"]))
+        if "tdg_tangent_u" in arrays:  # the stepper's first tangent is the checkpointed run's
+            run._tdg_system.pin = (np.array(arrays["tdg_tangent_u"], dtype=float), float(meta["tdg_tangent_t"]))
         return run
+
+
+class _TangentLog:
+    """The solid model as the TDG stepper sees it, noting where its tangent was evaluated.
+
+    ``last`` is the ``(u, t)`` of the latest :meth:`tangent` call (what the stepper factorised);
+    a ``pin`` set by :meth:`CoupledRun.restore` makes the next call evaluate there instead, so
+    the resumed stepper factorises the same matrix as the run that wrote the checkpoint.
+    """
+
+    def __init__(self, model):
+        self.model = model
+        self.last: tuple[np.ndarray, float] | None = None
+        self.pin: tuple[np.ndarray, float] | None = None
+
+    @property
+    def n_dofs(self) -> int:
+        """Free dofs of the model."""
+        return self.model.n_dofs
+
+    def mass(self):
+        """The model's mass."""
+        return self.model.mass()
+
+    def internal_force(self, u, t):
+        """The model's internal force."""
+        return self.model.internal_force(u, t)
+
+    def external_force(self, t):
+        """The model's external force."""
+        return self.model.external_force(t)
+
+    def tangent(self, u, t):
+        """The model's tangent at ``(u, t)`` (or at the pinned state, once)."""
+        if self.pin is not None:
+            u, t = self.pin
+            self.pin = None
+        self.last = (np.array(u, dtype=float), float(t))
+        return self.model.tangent(*self.last)
+
+
+#: Exceptions solver libraries raise for a singular or broken system (SuperLU: RuntimeError).
+_SOLVER_FAILURES = (RuntimeError, ArithmeticError, np.linalg.LinAlgError)
+
+
+def _solver_failure(exc: BaseException, t: float, part: str = "solid") -> ConvergenceError:
+    """A solver library's exception (e.g. SuperLU's "Factor is exactly singular") as a typed error."""
+    if part == "fluid":
+        return ConvergenceError(
+            f"the drainage pressure solve failed at t = {t:g} s ({type(exc).__name__}: {exc}); the network's "
+            "conductance matrix is singular: check the network for pores cut off from inlet and outlet")
+    return ConvergenceError(
+        f"the solid's linear solver failed at t = {t:g} s ({type(exc).__name__}: {exc}); the tangent is "
+        "singular or not positive definite: check for floating or inverted elements (solid.coarsen), "
+        "reduce coupling.exchange_dt, or try solid.linear_solver = 'amg'")
 
 
 def _same_topology(a: Network, b: Network) -> bool:
