@@ -226,8 +226,16 @@ def test_effective_loads_are_interpolant_at_stage_abscissae():
     F0, F1 = effective_loads(np.array([f(t)]), np.array([f(t + 2 * dt / 3)]))
     assert F0[0] == pytest.approx(f(t + ALPHA * dt), rel=1e-14)
     assert F1[0] == pytest.approx(f(t + dt), rel=1e-14)
-    w = (3 * math.sqrt(2) / 4 - 0.5, (6 - 3 * math.sqrt(2)) / 4)
-    assert sum(w) == pytest.approx(1.0, abs=1e-15)
+    # the code's weights, read off with unit loads: F0 = w0 f(t) + w1 f(t + 2 dt / 3) must be the
+    # consistent reading of the paper's F0 (DESIGN.md section 5; the printed one sums to 2.32)
+    # and F1 = -f(t)/2 + 3 f(t + 2 dt/3)/2 (linear extrapolation to t + dt); both sum to 1, so a
+    # constant load passes unchanged
+    (a0, b0), (a1, b1) = (effective_loads(np.array([1.0]), np.array([0.0])),
+                          effective_loads(np.array([0.0]), np.array([1.0])))
+    w0, w1 = (a0[0], a1[0]), (b0[0], b1[0])
+    np.testing.assert_allclose(w0, (3 * math.sqrt(2) / 4 - 0.5, (6 - 3 * math.sqrt(2)) / 4), rtol=1e-14)
+    np.testing.assert_allclose(w1, (-0.5, 1.5), rtol=1e-14)
+    assert sum(w0) == pytest.approx(1.0, abs=1e-15) and sum(w1) == pytest.approx(1.0, abs=1e-15)
     assert LAMBDA == pytest.approx(2.0 / 3.0 - 2.0 * ALPHA, abs=1e-15)
 
 

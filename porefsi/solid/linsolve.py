@@ -16,7 +16,7 @@ import scipy.sparse.linalg as spla
 from porefsi.errors import ConvergenceError, InputError
 
 __all__ = ["pcg", "rigid_body_modes", "AMGSolverFactory", "jacobi_solver_factory", "direct_solver_factory",
-           "AdaptiveSolverFactory", "SolveInfo", "single_thread_blas"]
+           "AdaptiveSolverFactory", "SolveInfo", "single_thread_blas", "IndefiniteMatrixError"]
 
 #: BLAS threads inside the solves (their dot products are on vectors of 1e4-1e6 entries).
 SOLVE_BLAS_THREADS = 1
@@ -39,6 +39,23 @@ def single_thread_blas():
 
         _CONTROLLER = ThreadpoolController()
     return _CONTROLLER.limit(limits=SOLVE_BLAS_THREADS, user_api="blas")
+
+
+class IndefiniteMatrixError(ConvergenceError):
+    """CG met a direction p with p.Ap <= 0: a certificate that A is not positive definite.
+
+    No preconditioner or rebuild can fix this; for a tangent stiffness it means the deformed
+    state is unstable (material softening, buckling) or the constraints leave a free motion.
+
+    Attributes
+    ----------
+    curvature : float
+        p.Ap / p.p of the offending direction (units of A).
+    """
+
+    def __init__(self, message: str, history=None, curvature: float = float("nan")):
+        super().__init__(message, history)
+        self.curvature = float(curvature)
 
 
 @dataclasses.dataclass
@@ -66,7 +83,9 @@ def pcg(A, b: np.ndarray, M=None, x0: np.ndarray | None = None, rtol: float = 1e
     Raises
     ------
     ConvergenceError
-        After ``maxiter`` iterations (default ``max(100, n)``) or on a breakdown, with the history.
+        After ``maxiter`` iterations (default ``max(100, n)``), with the history.
+    IndefiniteMatrixError
+        On a breakdown (a direction with p.Ap <= 0: A is not positive definite).
 
     Notes
     -----
@@ -99,7 +118,9 @@ def _pcg(A, b, M, x0, rtol, maxiter, what):
         Ap = A @ p
         pAp = p @ Ap
         if not pAp > 0:
-            raise ConvergenceError(f"{what} breakdown: p.Ap = {pAp:.3g} <= 0 (matrix not SPD?)", hist)
+            raise IndefiniteMatrixError(
+                f"{what} breakdown: p.Ap = {pAp:.3g} <= 0, so the matrix is not positive definite", hist,
+                curvature=pAp / float(p @ p))
         alpha = rz / pAp
         x += alpha * p
         r -= alpha * Ap
@@ -234,6 +255,8 @@ class AMGSolverFactory:
             try:
                 x, info = pcg(A, b, self.precondition, rtol=self.rtol, maxiter=cap, what="AMG-CG")
                 ok = True
+            except IndefiniteMatrixError:
+                raise  # a property of A: no hierarchy can help
             except ConvergenceError:
                 if state["fresh"]:
                     raise

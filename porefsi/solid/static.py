@@ -60,6 +60,9 @@ def solve_static(model, t: float, u0: np.ndarray | None = None, *, t_prev: float
     ------
     ConvergenceError
         If the residual does not fall below tolerance in ``max_iter`` iterations (with history).
+        Its subclass :class:`~porefsi.solid.linsolve.IndefiniteMatrixError` if CG finds the
+        tangent indefinite: the message says why (e.g. St Venant-Kirchhoff compressed below a
+        stretch of 1/sqrt(3)) and what to use instead.
     MeshError
         If an iterate inverts elements (take more load increments).
     """
@@ -76,7 +79,7 @@ def solve_static(model, t: float, u0: np.ndarray | None = None, *, t_prev: float
     rhs = fext - model.internal_force(u, t_prev) - (Kfull @ dD)[model.free]
     scale = max(np.linalg.norm(fext), np.linalg.norm(rhs), 1e-300)
     K = model.tangent(u, t_prev)
-    u = u + make_solver(K)(rhs)
+    u = u + _solve_checked(model, make_solver, K, rhs, u, t_prev)
     _record_linear(model, info)
     r = model.internal_force(u, t) - fext
     info.history.append(np.linalg.norm(r) / scale)
@@ -85,7 +88,7 @@ def solve_static(model, t: float, u0: np.ndarray | None = None, *, t_prev: float
             info.converged, info.iterations = True, it
             return u, info
         K = model.tangent(u, t)
-        u = u + make_solver(K)(-r)
+        u = u + _solve_checked(model, make_solver, K, -r, u, t)
         _record_linear(model, info)
         r = model.internal_force(u, t) - fext
         info.history.append(np.linalg.norm(r) / scale)
@@ -95,6 +98,49 @@ def solve_static(model, t: float, u0: np.ndarray | None = None, *, t_prev: float
     raise ConvergenceError(
         f"Newton did not converge in {max_iter} iterations at t={t:g} (relative residual "
         f"{info.history[-1]:.3g}); use more load increments", info.history)
+
+
+#: St Venant-Kirchhoff's nominal stress in uniaxial stress or strain, P ~ c (c^2 - 1), peaks at
+#: the stretch c = 1/sqrt(3) and softens below it: the material is unstable there.
+SVK_CRITICAL_STRETCH = 1.0 / np.sqrt(3.0)
+
+
+def _solve_checked(model, make_solver, K, rhs, u, t):
+    """``make_solver(K)(rhs)``; an indefinite tangent is reported as the instability it is."""
+    from porefsi.solid.linsolve import IndefiniteMatrixError
+
+    try:
+        return make_solver(K)(rhs)
+    except IndefiniteMatrixError as exc:
+        raise IndefiniteMatrixError(f"{exc}: {_instability_diagnosis(model, u, t)}", exc.history,
+                                    curvature=exc.curvature) from None
+
+
+def _instability_diagnosis(model, u, t) -> str:
+    """Why the tangent at (u, t) is not positive definite, in words, with the smallest stretch."""
+    from porefsi.solid.forms import deformation_gradient
+    from porefsi.solid.materials import StVenantKirchhoff
+
+    msg = ("the tangent stiffness at the current Newton iterate is not positive definite (the deformed "
+           "state is unstable)")
+    try:
+        F = deformation_gradient(model.feb, model.full_displacement(u, t))  # (3, 3, Ne, nqp)
+    except Exception:  # noqa: BLE001 - only a diagnosis; the solve error is the news
+        return msg + "; use a smaller strain or more load increments"
+    C = np.einsum("kiep,kjep->epij", F, F)
+    stretch = np.sqrt(np.clip(np.linalg.eigvalsh(C)[..., 0], 0.0, None)).min(axis=1)  # per element
+    smin = float(stretch.min())
+    if isinstance(model.material, StVenantKirchhoff):
+        n_soft = int(np.count_nonzero(stretch < SVK_CRITICAL_STRETCH))
+        if n_soft:
+            return (f"{msg}: St Venant-Kirchhoff is unstable in strong compression (its stress peaks at a "
+                    f"principal stretch of 1/sqrt(3) = {SVK_CRITICAL_STRETCH:.3f} and softens below), and "
+                    f"{n_soft} of {len(stretch)} elements are compressed beyond that (smallest stretch "
+                    f"{smin:.3f}); use the neo-Hookean material (NeoHookean, --material neo-hookean: no material "
+                    "instability in compression, though the porous frame can still buckle), a smaller strain or "
+                    "more load increments")
+    return (f"{msg}: smallest principal stretch {smin:.3f}; the frame may buckle or a material limit is passed; "
+            "use a smaller strain, more load increments, or the neo-Hookean material")
 
 
 def _record_linear(model, info):
@@ -157,6 +203,7 @@ def uniaxial_compression(mesh: SolidMesh, material: Material, strain: float = 1e
     ConvergenceError
         If Newton fails (use more increments).
     """
+    from porefsi.solid.linsolve import IndefiniteMatrixError
     from porefsi.solid.model import SolidModel
     from porefsi.solid.stress import effective_modulus, element_cauchy, nodal_average, von_mises
 
@@ -178,6 +225,9 @@ def uniaxial_compression(mesh: SolidMesh, material: Material, strain: float = 1e
             u, info = solve_static(model, t, u0=u, t_prev=(k - 1) / int(n_steps), rtol=rtol)
         except MeshError as exc:
             raise MeshError(f"{exc} (at load increment {k}/{n_steps}; try n_steps={2 * int(n_steps)})") from None
+        except IndefiniteMatrixError as exc:
+            raise IndefiniteMatrixError(f"{exc} (at load increment {k}/{n_steps}, strain {strain * t:g})",
+                                        exc.history, curvature=exc.curvature) from None
         infos.append(info)
     R = model.reactions(u, 1.0)[FACE_NAMES[2 * ax + 1]]  # force of the platen on the solid
     area = float(np.prod(np.delete(box[1] - box[0], ax)))
