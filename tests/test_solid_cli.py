@@ -121,3 +121,17 @@ def test_solid_cli_strain_material_axis_change_outputs_as_physics_says(tmp_path,
     assert runs["x"]["axis"] == "x" and runs["x"]["axial_reaction_N"] < 0
     ux = runs["x"]["u"]
     assert np.abs(ux[:, 0]).max() == pytest.approx(runs["x"]["max_displacement_m"], rel=1e-12)
+
+
+def test_solid_cli_small_image_with_default_coarsen(tmp_path, capsys):
+    """A 4^3 image (37.5 % solid) with the default --coarsen 5: one block, under half solid, so
+    nothing is left; the message names that cause and the fix, and --coarsen 1 works."""
+    ph = np.ones((4, 4, 4), np.uint8)
+    ph[:, :, 0] = 0
+    ph[:2, :, 1] = 0
+    path = tmp_path / "small.npy"
+    np.save(path, ph)
+    assert main(["solid", str(path), "--voxel-size", "1e-6"]) == 2
+    err = capsys.readouterr().err
+    assert "no 5^3 block is at least 0.5 solid" in err and "--coarsen 1" in err
+    assert main(["solid", str(path), "--voxel-size", "1e-6", "--coarsen", "1", "--axis", "x", "--json"]) == 0
