@@ -437,3 +437,83 @@ def test_drainage_solver_failure_is_a_convergence_error(monkeypatch):
     monkeypatch.setattr(DrainageSimulator, "advance_to", broken)
     with pytest.raises(ConvergenceError, match="drainage pressure solve failed at t = 0 s"):
         next(run.steps())
+
+
+def test_pore_files_every_exchange_step(finished):
+    """pores/step_NNNN.npz and pores/psd_NNNN.csv for steps 0..3: the arrays behind the time
+    series (their aggregates equal its columns) and a PSD on the same bins at every step."""
+    from porefsi.io.results import read_pore_steps
+
+    out, ts = finished.directory, finished.timeseries
+    steps = read_pore_steps(out)
+    assert [s["step"] for s in steps] == ts["step"] == [0, 1, 2, 3]
+    edges = None
+    for s, k in zip(steps, range(4), strict=True):
+        assert s["time_s"] == ts["time_s"][k]
+        assert np.mean(s["pore_radius_m"]) == ts["mean_pore_radius_m"][k]
+        assert np.nan_to_num(s["pore_pressure_Pa"]).max(initial=0.0) == ts["max_pore_pressure_Pa"][k]
+        n = len(s["pore_radius_m"])
+        assert s["nw_saturation"].shape == s["pore_volume_m3"].shape == (n,) and s["pore_coords_m"].shape == (n, 3)
+        rows = list(csv.DictReader((out / "pores" / f"psd_{k:04d}.csv").open()))
+        assert sum(int(r["n_pores"]) for r in rows) == n
+        np.testing.assert_allclose(sum(float(r["pore_volume_m3"]) for r in rows), s["pore_volume_m3"].sum(),
+                                   rtol=1e-12)
+        e = [(float(r["radius_lo_m"]), float(r["radius_hi_m"])) for r in rows]
+        assert edges is None or e == edges
+        edges = e
+    # the pressures load the rock and the drainage moves them: they change between steps
+    assert not np.array_equal(steps[1]["pore_pressure_Pa"], steps[3]["pore_pressure_Pa"])
+    assert steps[3]["nw_saturation"].sum() > steps[1]["nw_saturation"].sum() > 0
+    # capillary pressure = inlet minus outlet node, the outlet held at 0
+    assert ts["capillary_pressure_Pa"][1:] == ts["inlet_pressure_Pa"][1:]
+
+
+def _plant(out, names):
+    for n in names:
+        (out / n).parent.mkdir(parents=True, exist_ok=True)
+        (out / n).write_text("stale")
+
+
+OWN_STALE = ("vtk/solid_0042.vtu", "vtk/network_0042.vtp", "pores/step_0042.npz", "pores/psd_0042.csv",
+             "figures/drainage_t042_000s.png", "figures/von_mises_t015_000s.png", "figures/timeseries.png",
+             "vtk/.solid_0002.vtu.k3j_x9.tmp")
+USER_FILES = ("notes.txt", "figures/my_plot.png", "vtk/mine.vtu", "pores/analysis.py")
+
+
+def test_fresh_run_clears_only_porefsi_outputs(tmp_path):
+    """Re-running into an old directory: the files an earlier run wrote (here of a longer run: steps
+    and snapshot times this run does not have) are removed first; a user's other files stay."""
+    out = tmp_path / "old"
+    _plant(out, OWN_STALE + USER_FILES)
+    res = run_case(_small(drainage={"t_end": 2.0}), out, progress=False)
+    for n in OWN_STALE:
+        assert not (out / n).exists(), n
+    for n in USER_FILES:
+        assert (out / n).read_text() == "stale", n
+    assert sorted(p.name for p in (out / "pores").glob("step_*.npz")) == [f"step_{k:04d}.npz" for k in range(3)]
+    assert sorted(p.name for p in (out / "vtk").glob("solid_*.vtu")) == ["solid_0000.vtu", "solid_0001.vtu",
+                                                                          "solid_0002.vtu"]
+    assert res.summary["status"] == "completed"
+
+
+def test_resume_rewrites_the_per_step_files_after_the_checkpoint(finished, tmp_path):
+    """Steps after the checkpoint are redone: their old per-step files go and come back equal to
+    the uninterrupted run's; user files are kept."""
+    from porefsi.io.results import read_pore_steps
+
+    out = tmp_path / "r"
+    run_case(_small(), out, progress=False, stop_after=1)
+    _plant(out, ("pores/step_0003.npz", "vtk/solid_0009.vtu") + USER_FILES)
+    run_case(_small(), out, resume=True, progress=False)
+    assert not (out / "vtk" / "solid_0009.vtu").exists()
+    for n in USER_FILES:
+        assert (out / n).read_text() == "stale", n
+    a, b = read_pore_steps(finished.directory), read_pore_steps(out)
+    assert len(a) == len(b) == 4
+    for x, y in zip(a, b, strict=True):
+        assert x.keys() == y.keys()
+        for k in x:
+            np.testing.assert_array_equal(x[k], y[k], err_msg=k)
+    for k in range(4):
+        name = f"pores/psd_{k:04d}.csv"
+        assert (out / name).read_text() == (finished.directory / name).read_text()

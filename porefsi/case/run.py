@@ -7,9 +7,17 @@ Outputs in the run directory:
 - ``summary.json``: headline figures (and ``status``/``error`` if the run failed);
 - ``solid.pvd`` + ``vtk/solid_NNNN.vtu`` (displacement, von Mises, nodal pore force) and
   ``network.pvd`` + ``vtk/network_NNNN.vtp`` (pressure, saturation, radius) at the snapshot times;
+- ``pores/step_NNNN.npz`` (every exchange step, step 0 included): pore pressure, non-wetting
+  saturation, radius, volume and centre of every pore (:func:`porefsi.io.results.read_pore_steps`),
+  and ``pores/psd_NNNN.csv``: the pore-size distribution of that step on fixed bins;
 - ``figures/*.png``: time series, pore-size distributions, drainage and deformation scenes;
 - ``checkpoint.npz``: written atomically every ``output.checkpoint_every`` steps; ``--resume``
   continues from it and ends with the same results as an uninterrupted run.
+
+Every file is written atomically. A fresh run first removes the files an earlier run wrote in the
+directory (the names above; files of other names, e.g. a user's own figures, are kept); a resumed
+run removes the per-step files of the steps after its checkpoint (it rewrites them) and the
+figures (made again at the end).
 """
 
 from __future__ import annotations
@@ -17,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -76,6 +85,71 @@ class _Progress:
         if done == self.total:
             out.write("\n")
         out.flush()
+
+
+#: Files porefsi writes in a run directory, by sub-folder (regular expressions on the name; a
+#: group ``step`` marks per-step files). Only these are ever removed, never other files.
+_OUTPUT_FILES = {
+    ".": (r"checkpoint\.npz", r"summary\.json", r"timeseries\.csv", r"solid\.pvd", r"network\.pvd"),
+    "vtk": (r"solid_(?P<step>\d{4,})\.vtu", r"network_(?P<step>\d{4,})\.vtp"),
+    "pores": (r"step_(?P<step>\d{4,})\.npz", r"psd_(?P<step>\d{4,})\.csv"),
+    "figures": (r"timeseries\.png", r"pore_size_distribution\.png",
+                r"(drainage|displacement|pore_force|von_mises)_t\d{3,}_\d{3}s\.png"),
+}
+#: Number of pore-size bins of ``pores/psd_NNNN.csv``.
+PSD_BINS = 30
+#: The bins span [0, PSD_SPAN x the largest pore radius of the reference network].
+PSD_SPAN = 1.5
+
+
+def _clear_outputs(out: Path, after_step: int | None = None) -> list[Path]:
+    """Remove the files porefsi wrote in ``out``; return them.
+
+    A fresh run (``after_step`` None) removes all of them; a resumed run only the per-step files
+    of the steps after ``after_step`` and the figures. The temporary files of atomic writes a
+    killed run left go too. Files of other names are never touched.
+    """
+    removed = []
+    for sub, patterns in _OUTPUT_FILES.items():
+        d = out / sub
+        if not d.is_dir():
+            continue
+        for f in d.iterdir():
+            if not f.is_file():
+                continue
+            tmp = re.fullmatch(r"\.(?P<name>.+)\.[^.]+\.tmp", f.name)  # atomic_write_bytes' temporaries
+            name = tmp["name"] if tmp else f.name
+            m = next((m for m in (re.fullmatch(pat, name) for pat in patterns) if m), None)
+            if m is None:
+                continue
+            step = m.groupdict().get("step")
+            if after_step is None or tmp or sub == "figures" or (step is not None and int(step) > after_step):
+                f.unlink()
+                removed.append(f)
+        if sub != "." and after_step is None and not any(d.iterdir()):
+            d.rmdir()
+    return removed
+
+
+def _psd_edges(net) -> np.ndarray:
+    r_max = float(np.max(net.pore_radius)) if net.n_pores else 1.0
+    return np.linspace(0.0, PSD_SPAN * r_max, PSD_BINS + 1)
+
+
+def _write_pores(out: Path, rec: ExchangeRecord, edges: np.ndarray) -> None:
+    """``pores/step_NNNN.npz`` (per-pore arrays) and ``pores/psd_NNNN.csv`` of one exchange step."""
+    net, f = rec.network, rec.flow
+    results.write_npz(out / "pores" / f"step_{rec.step:04d}.npz", {
+        "step": np.int64(rec.step), "time_s": np.float64(rec.t),
+        "pore_pressure_Pa": np.asarray(f.fluid_pressure, float), "nw_saturation": np.asarray(f.nw_saturation, float),
+        "pore_radius_m": net.pore_radius, "pore_volume_m3": net.pore_volume, "pore_coords_m": net.pore_coords})
+    r = np.minimum(net.pore_radius, edges[-1])  # larger pores are counted in the last bin
+    count, _ = np.histogram(r, bins=edges)
+    vol, _ = np.histogram(r, bins=edges, weights=net.pore_volume)
+    n = len(count)
+    results.write_csv(out / "pores" / f"psd_{rec.step:04d}.csv", {
+        "step": [rec.step] * n, "time_s": [rec.t] * n, "radius_lo_m": edges[:-1].tolist(),
+        "radius_hi_m": edges[1:].tolist(), "n_pores": count.tolist(), "pore_volume_m3": vol.tolist()})
 
 
 def _snapshot_due(case: Case, t0: float, t1: float, last: bool) -> bool:
@@ -182,9 +256,10 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             raise ConfigError(f"--resume: the case differs from the one that started {str(out)!r}; "
                               "resume with the same case file or start a new run directory")
         wall_before = float(meta.get("wall_seconds", 0.0))
+        # the steps after the checkpoint are redone: their files go (they are rewritten)
+        _clear_outputs(out, after_step=int(meta["step_index"]))
     else:
-        for stale in ("checkpoint.npz", "summary.json", "timeseries.csv", "solid.pvd", "network.pvd"):
-            (out / stale).unlink(missing_ok=True)
+        _clear_outputs(out)
     results.atomic_write_text(out / "case.toml", case_to_toml(case))
 
     def elapsed() -> float:
@@ -212,13 +287,16 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             setup_seconds = dict(problem.seconds)
             rec0 = run.initial_record()
             rows.append(rec0.row)
+            _write_pores(out, rec0, _psd_edges(problem.network))
             if case.output.vtk:
                 _write_snapshot(out, rec0, run, series)
             snapshots.append(_snapshot(rec0))
         bar = _Progress(run.n_steps, progress, start=run.step_index)
+        edges = _psd_edges(problem.network)
         n_done = 0
         for rec in run.steps():
             rows.append(rec.row)
+            _write_pores(out, rec, edges)
             t_prev = rows[-2]["time_s"]
             last = run.step_index == run.n_steps
             if _snapshot_due(case, t_prev, rec.t, last):

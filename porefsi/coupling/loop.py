@@ -40,7 +40,10 @@ from porefsi.network.network import Network
 from porefsi.solid.static import solve_static
 from porefsi.solid.stress import element_cauchy, nodal_average, von_mises
 
-__all__ = ["ExchangeRecord", "CoupledRun", "TIMESERIES_COLUMNS"]
+__all__ = ["ExchangeRecord", "CoupledRun", "TIMESERIES_COLUMNS", "TIMESERIES_DOCS", "OUTLET_PRESSURE"]
+
+#: Pressure of the outlet (virtual outlet node of the drainage), Pa: pressures are gauge.
+OUTLET_PRESSURE = 0.0
 
 #: Columns of the per-exchange-step time series (``timeseries.csv``).
 TIMESERIES_COLUMNS = (
@@ -49,6 +52,31 @@ TIMESERIES_COLUMNS = (
     "n_events", "n_solves", "mass_balance_error", "load_balance_error", "subiterations", "coupling_residual",
     "precoupling_iterations", "precoupling_Ea", "wall_s",
 )
+
+#: What each column of :data:`TIMESERIES_COLUMNS` holds (SI units, as in the names).
+TIMESERIES_DOCS = {
+    "step": "exchange step (0 = the initial state)",
+    "time_s": "time at the end of the step, s",
+    "sw": "wetting saturation of the spanning pore space",
+    "inlet_pressure_Pa": "pressure of the virtual inlet node (gauge: outlet at 0), Pa",
+    "capillary_pressure_Pa": "P_in - P_out, inlet minus outlet node pressure (the drainage's definition); "
+                             "equal to inlet_pressure_Pa because the outlet is held at P_out = 0, Pa",
+    "max_pore_pressure_Pa": "largest pore-wall (volume-averaged fluid) pressure, Pa",
+    "total_pore_force_N": "sum over nodes of the magnitude of the pore-pressure nodal force, N",
+    "max_displacement_m": "largest nodal displacement magnitude, m",
+    "max_von_mises_Pa": "largest nodal (volume-averaged) von Mises stress, Pa",
+    "permeability_m2": "absolute permeability of the current (deformed) network along the flow axis, m^2",
+    "mean_pore_radius_m": "mean pore radius of the current network, m",
+    "n_events": "cumulative drainage filling events",
+    "n_solves": "cumulative drainage pressure solves",
+    "mass_balance_error": "relative non-wetting volume balance of the drainage (round-off by construction)",
+    "load_balance_error": "relative mismatch between the load the interface hands over and the pores carry",
+    "subiterations": "fluid-solid sub-iterations of the step (0 at step 0)",
+    "coupling_residual": "last relative displacement change of the sub-iterations (0 without)",
+    "precoupling_iterations": "re-extractions of the step (re-extraction mode)",
+    "precoupling_Ea": "last mean-pore-size change E_a (paper eq. 3.3; empty without re-extraction)",
+    "wall_s": "wall time of the step, s",
+}
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -383,7 +411,8 @@ class CoupledRun:
         c = self.sim.counters
         row = {
             "step": step, "time_s": self.t, "sw": state.sw,
-            "inlet_pressure_Pa": state.inlet_pressure, "capillary_pressure_Pa": state.inlet_pressure,
+            "inlet_pressure_Pa": state.inlet_pressure,
+            "capillary_pressure_Pa": state.inlet_pressure - OUTLET_PRESSURE,
             "max_pore_pressure_Pa": float(P.max(initial=0.0)),
             "total_pore_force_N": float(np.linalg.norm(F, axis=1).sum()),
             "max_displacement_m": float(np.linalg.norm(U, axis=1).max(initial=0.0)),

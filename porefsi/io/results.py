@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["jsonable", "atomic_write_bytes", "atomic_write_text", "write_json", "write_csv", "PvdSeries",
-           "save_checkpoint", "load_checkpoint"]
+__all__ = ["jsonable", "atomic_write_bytes", "atomic_write_text", "write_json", "write_csv", "write_npz", "PvdSeries",
+           "save_checkpoint", "load_checkpoint", "read_pore_steps"]
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
@@ -78,6 +78,38 @@ def write_csv(path: str | Path, columns: Mapping[str, Sequence]) -> Path:
     for row in zip(*(columns[k] for k in names), strict=True):
         w.writerow(["" if (isinstance(x, float) and not math.isfinite(x)) else _fmt(x) for x in row])
     return atomic_write_text(path, buf.getvalue())
+
+
+def write_npz(path: str | Path, arrays: Mapping[str, np.ndarray]) -> Path:
+    """Write arrays into one ``.npz`` atomically (no pickles: plain numeric arrays)."""
+    buf = io.BytesIO()
+    np.savez(buf, **{k: np.asarray(v) for k, v in arrays.items()})
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def read_pore_steps(directory: str | Path) -> list[dict[str, np.ndarray]]:
+    """The per-exchange-step pore files of a run directory (``pores/step_NNNN.npz``), in step order.
+
+    Each entry holds ``step``, ``time_s``, ``pore_pressure_Pa``, ``nw_saturation``,
+    ``pore_radius_m``, ``pore_volume_m3`` and ``pore_coords_m`` of that step's network (the pore
+    count can change between steps under re-extraction).
+
+    Examples
+    --------
+    Pore pressure of pore 0 over time (a run directory ``out``)::
+
+        steps = read_pore_steps(out)
+        t = [s["time_s"] for s in steps]
+        p0 = [s["pore_pressure_Pa"][0] for s in steps]
+    """
+    files = sorted(Path(directory, "pores").glob("step_[0-9][0-9][0-9][0-9]*.npz"))
+    out = []
+    for f in files:
+        with np.load(f, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+        d["step"], d["time_s"] = int(d["step"]), float(d["time_s"])
+        out.append(d)
+    return sorted(out, key=lambda d: d["step"])
 
 
 def _fmt(x):
