@@ -517,3 +517,84 @@ def test_resume_rewrites_the_per_step_files_after_the_checkpoint(finished, tmp_p
     for k in range(4):
         name = f"pores/psd_{k:04d}.csv"
         assert (out / name).read_text() == (finished.directory / name).read_text()
+
+
+def _renumbered(net, labels, perm):
+    """The same network with new pore k = old pore perm[k] (throats follow, conns kept ordered)."""
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(len(perm))
+    conns = inv[net.throat_conns]
+    flip = conns[:, 0] > conns[:, 1]
+    conns[flip] = conns[flip][:, ::-1]
+    tpl = net.throat_pore_length.copy()
+    tpl[flip] = tpl[flip][:, ::-1]
+    new = net.replace(pore_coords=net.pore_coords[perm], pore_radius=net.pore_radius[perm],
+                      pore_volume=net.pore_volume[perm], pore_faces=net.pore_faces[perm], throat_conns=conns,
+                      throat_pore_length=tpl)
+    return new, np.where(labels >= 0, inv[np.maximum(labels, 0)], labels)
+
+
+@pytest.mark.parametrize("method", ["traction", "hull"])
+def test_interface_is_invariant_to_pore_renumbering(method):
+    """Renumber the pores (network and voxel labels): build_interface gives the operator with its
+    columns permuted the same way, so the nodal forces of the same physical pressures are equal."""
+    from porefsi.coupling.problem import build_interface
+
+    case = _small(interface={"method": method})
+    p = build_problem(case)
+    perm = np.random.default_rng(11).permutation(p.network.n_pores)
+    net_b, lab_b = _renumbered(p.network, p.extraction.labels, perm)
+    a = p.interface
+    b = build_interface(case, net_b, lab_b, p.mesh, p.image.voxel_size, p.image.origin)
+    assert abs(b.operator - a.operator[:, perm]).max() == 0.0
+    np.testing.assert_array_equal(b.wall_area, a.wall_area[perm])
+    for k in range(0, len(perm), 17):
+        np.testing.assert_array_equal(b.pore_nodes[k], a.pore_nodes[perm[k]])
+    P = np.random.default_rng(2).uniform(0.0, 2.0e3, len(perm))
+    np.testing.assert_allclose(b.nodal_forces(P[perm]), a.nodal_forces(P), rtol=1e-13, atol=1e-30)
+    assert np.abs(a.nodal_forces(P)).max() > 0
+    assert b.load_balance_error(P[perm]) == pytest.approx(a.load_balance_error(P), rel=1e-12, abs=1e-15)
+
+
+def test_case_hull_loads_only_pore_wall_nodes():
+    """Through build_interface (the case path), the hull's labelled nodes are pore-wall surface
+    nodes: at coarsen 10 the enlarged hulls also contain 42 interior solid nodes, which an
+    unrestricted search would load."""
+    from porefsi.coupling.interface import hull_interface
+
+    p = build_problem(_small(interface={"method": "hull"}))
+    wall = np.zeros(p.mesh.n_nodes, bool)
+    wall[p.mesh.nodes_tagged("pore_wall")] = True
+    loaded = np.unique(np.concatenate(p.interface.pore_nodes))
+    assert loaded.size > 0 and wall[loaded].all()
+    rows = np.unique(p.interface.operator.tocoo().row // 3)
+    assert wall[rows].all()
+    # the restriction matters here: without it interior nodes fall inside the enlarged hulls
+    net = p.network
+    free = hull_interface(net.pore_coords, net.pore_radius, p.mesh.points, n_test_points=100,
+                          rng=np.random.default_rng(0))
+    assert not wall[np.unique(np.concatenate(free.pore_nodes))].all()
+
+
+def test_throat_forces_switch_through_the_case_file(tmp_path):
+    """interface.throat_forces = true (hull) loads the throat walls: each throat's lateral area is
+    added half to each of its pores' wall area and handed to nodes (the load balance then checks
+    it too); with the traction method it is a ConfigError naming the key."""
+    from porefsi.case.config import load_case
+
+    path = tmp_path / "c.toml"
+    path.write_text('[interface]\nmethod = "hull"\nthroat_forces = true\nn_test_points = 100\n'
+                    '[solid]\ncoarsen = 10\n[drainage]\nt_end = 2.0\n')
+    case = load_case(path)
+    assert case.interface.throat_forces
+    with_t = build_problem(case).interface
+    plain = build_problem(case.replace(interface={"throat_forces": False})).interface
+    assert with_t.throat_operator is not None and plain.throat_operator is None
+    assert with_t.throat_operator.shape[1] > 0
+    added = with_t.wall_area - plain.wall_area
+    assert np.all(added >= 0) and added.sum() == pytest.approx(with_t.throat_area.sum(), rel=1e-12)
+    P = np.full(with_t.n_pores, 1.0e3)
+    assert np.linalg.norm(with_t.nodal_forces(P) - plain.nodal_forces(P)) > 0
+    path.write_text('[interface]\nmethod = "traction"\nthroat_forces = true\n')
+    with pytest.raises(ConfigError, match=r"interface\.throat_forces = true needs interface\.method = 'hull'"):
+        load_case(path)

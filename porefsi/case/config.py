@@ -115,11 +115,14 @@ class InterfaceConfig:
                      "0.29 vs the hull's 0.77 error at equal cost, docs/speed_accuracy.md); hull = the paper's "
                      "convex hull of test points",
                      choices=("hull", "traction"))
-    n_test_points: int = _f(800, "test points per pore sphere (paper: 800)", lo=4)
-    tolerance: float | None = _f(None, "range of inclusivity ε (eq. 3.2); default 0.5 x pore radius",
-                                 lo=0.0, unit="m", optional=True)
-    seed: int = _f(0, "seed of the test-point generator", lo=0)
-    throat_forces: bool = _f(False, "hull only: also load the throat walls (the paper neglects them, section 3.2)")
+    n_test_points: int = _f(800, "hull only (ignored with traction): test points per pore sphere (paper: 800)",
+                            lo=4)
+    tolerance: float | None = _f(None, "hull only (ignored with traction): range of inclusivity ε (eq. 3.2); "
+                                 "default 0.5 x pore radius", lo=0.0, unit="m", optional=True)
+    seed: int = _f(0, "hull only (ignored with traction): seed of the test-point generator", lo=0)
+    throat_forces: bool = _f(False, "hull only: also load the throat walls (the paper neglects them, section 3.2); "
+                             "true with method = traction is an error (the traction already loads the whole wall "
+                             "of each pore's voxel region, throats included)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -312,6 +315,11 @@ def case_from_dict(data: dict, *, name: str = "case", where: str = "case") -> Ca
 
 
 def _cross_check(case: Case, where: str) -> None:
+    if case.interface.throat_forces and case.interface.method != "hull":
+        raise ConfigError(
+            f"{where}: interface.throat_forces = true needs interface.method = 'hull' (got "
+            f"{case.interface.method!r}, whose wall traction already covers the throat walls); set "
+            "throat_forces = false or method = 'hull'")
     if case.image.threshold is not None and case.image.pore_value is not None:
         raise ConfigError(f"{where}: give image.threshold or image.pore_value, not both")
     if case.coupling.exchange_dt > case.drainage.t_end:
