@@ -138,10 +138,24 @@ class CoupledRun:
     ----------
     problem : CoupledProblem
         Built by :func:`porefsi.coupling.problem.build_problem`.
+    reuse_extractions : bool, default True
+        Re-extraction mode: serve the extraction of a voxel image seen before (by digest; the
+        extraction is deterministic, so the result is the same bit for bit) instead of computing
+        it again. False computes every re-extraction, as the paper does (benchmarks of its cost).
+
+    Attributes
+    ----------
+    n_extractions, n_extractions_reused : int
+        Re-extractions computed, and served from the digest cache.
+    update_seconds : dict
+        The re-extraction part of the ``update`` stage: ``voxelise`` (the deformed solid on the
+        voxel grid), ``extract`` (computed extractions), ``interface_rebuild`` (after a topology
+        change), s.
     """
 
-    def __init__(self, problem: CoupledProblem):
+    def __init__(self, problem: CoupledProblem, *, reuse_extractions: bool = True):
         self.problem = problem
+        self.reuse_extractions = bool(reuse_extractions)
         case = problem.case
         self.dt = case.coupling.exchange_dt
         self.t_end = case.drainage.t_end
@@ -171,6 +185,7 @@ class CoupledRun:
         self.n_extractions = 0  # re-extractions actually computed (not served from the above)
         self.n_extractions_reused = 0  # re-extractions served from the digest cache
         self.seconds = dict.fromkeys(("fluid", "interface", "solid", "update", "stress", "permeability"), 0.0)
+        self.update_seconds = dict.fromkeys(("voxelise", "extract", "interface_rebuild"), 0.0)
         self.precoupling_history: list[float] = []
 
     # ---- solid --------------------------------------------------------------------------
@@ -255,24 +270,31 @@ class CoupledRun:
                                                   self.interface.pore_nodes, p.mesh.points, p.node_spacing)
             return geometric_update(p.network, self._update_nodes, p.mesh.points, U), self.interface, \
                 self.labels, None
+        tt = time.perf_counter()
         img = deformed_image(p.image, p.mesh.points, U, p.node_spacing)
+        self.update_seconds["voxelise"] += time.perf_counter() - tt
         # The extraction is deterministic: the same voxel image gives the same network bit for bit,
         # so an image seen before (at the paper's loads: always the reference image, displacements
         # being ~1e-6 voxel) reuses its extraction instead of repeating it.
         key = hashlib.sha1(np.ascontiguousarray(img.phases).tobytes()).digest()
-        ex = self._extractions.get(key)
+        ex = self._extractions.get(key) if self.reuse_extractions else None
         if ex is not None:
             self.n_extractions_reused += 1
         else:
+            tt = time.perf_counter()
             ex = extract_network(percolating_cluster(img, p.case.image.axis).image)
+            self.update_seconds["extract"] += time.perf_counter() - tt
             self.n_extractions += 1
-            if len(self._extractions) >= 4:
-                self._extractions.pop(next(iter(self._extractions)))
-            self._extractions[key] = ex
+            if self.reuse_extractions:
+                if len(self._extractions) >= 4:
+                    self._extractions.pop(next(iter(self._extractions)))
+                self._extractions[key] = ex
         new = ex.network
         if _same_topology(new, self.network):
             return new, self.interface, self.labels, None
+        tt = time.perf_counter()
         itf = build_interface(p.case, new, ex.labels, p.mesh, p.image.voxel_size, p.image.origin)
+        self.update_seconds["interface_rebuild"] += time.perf_counter() - tt
         return new, itf, ex.labels, None
 
     @staticmethod
@@ -435,7 +457,8 @@ class CoupledRun:
             "interface": np.frombuffer(pickle.dumps(self.interface, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
         }
         meta = {"step_index": self.step_index, "t": self.t, "seconds": self.seconds,
-                "n_extractions": self.n_extractions, "n_extractions_reused": self.n_extractions_reused}
+                "n_extractions": self.n_extractions, "n_extractions_reused": self.n_extractions_reused,
+                "update_seconds": self.update_seconds}
         # where the reused factorisations were built (restore rebuilds the same matrices)
         if self._static_lu_at is not None:
             arrays["static_lu_u"] = self._static_lu_at[0]
@@ -447,9 +470,10 @@ class CoupledRun:
         return arrays, meta
 
     @classmethod
-    def restore(cls, problem: CoupledProblem, arrays: dict, meta: dict) -> CoupledRun:
+    def restore(cls, problem: CoupledProblem, arrays: dict, meta: dict, *, reuse_extractions: bool = True
+                ) -> CoupledRun:
         """Rebuild a run from :meth:`checkpoint` output (on the same problem)."""
-        run = cls(problem)
+        run = cls(problem, reuse_extractions=reuse_extractions)
         run.u = np.array(arrays["u"], dtype=float)
         run.v = np.array(arrays["v"], dtype=float)
         run.labels = np.array(arrays["labels"])
@@ -461,6 +485,7 @@ class CoupledRun:
         run.seconds = dict(meta["seconds"])
         run.n_extractions = int(meta.get("n_extractions", 0))
         run.n_extractions_reused = int(meta.get("n_extractions_reused", 0))
+        run.update_seconds.update(meta.get("update_seconds", {}))
         if "static_lu_u" in arrays:
             run._static_lu_at = (np.array(arrays["static_lu_u"], dtype=float), float(meta["static_lu_t"]))
         if "tdg_tangent_u" in arrays:  # the stepper's first tangent is the checkpointed run's
