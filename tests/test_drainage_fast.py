@@ -3,9 +3,11 @@
 import pickle
 
 import numpy as np
+import pytest
 
 from porefsi.flow.drainage import DrainageSimulator
 from porefsi.flow.fluids import Fluids
+from porefsi.flow.invasion import invasion_percolation
 from porefsi.network.lattice import lattice_network
 
 SPACING = 1e-4
@@ -86,3 +88,52 @@ def test_solver_pickled_without_prefetch_fields_still_runs(rng):
     sim2 = pickle.loads(pickle.dumps(sim))
     sim2.advance_to(1e9, stop_at_breakthrough=True)
     assert sim2._engine.solver.prefetch and not np.isnan(sim2.breakthrough_time)
+
+
+def _same_drainage(runs):
+    """Every run of ``runs`` has the first one's events, solves, states and invasion times."""
+    ref = runs[0]
+    for sim in runs[1:]:
+        for k in ("n_events", "n_fills", "n_jumps", "n_solves", "n_active_set_changes"):
+            assert sim.counters[k] == ref.counters[k], k
+        np.testing.assert_array_equal(np.isnan(sim.invasion_time()), np.isnan(ref.invasion_time()))
+        np.testing.assert_allclose(sim.invasion_time(), ref.invasion_time(), rtol=1e-10)
+        np.testing.assert_array_equal(sim.state.pore_state, ref.state.pore_state)
+        assert sim.breakthrough_time == pytest.approx(ref.breakthrough_time, rel=1e-10)
+
+
+def _three_solvers(net, fl, **kw):
+    """The same drainage with a fresh LU per solve, and low-rank without and with prefetching."""
+    runs = []
+    for solver, prefetch in (("direct", False), ("lowrank", False), ("lowrank", True)):
+        sim = DrainageSimulator(net, fl, solver=solver, **kw)
+        sim._engine.solver.prefetch = prefetch
+        sim.advance_to(1e9, stop_at_breakthrough=True)
+        runs.append(sim)
+    assert runs[2]._engine.solver.n_prefetched > 0
+    return runs
+
+
+@pytest.mark.parametrize("shape, seed, m", [((24, 24, 1), 1, 1e-3), ((10, 8, 6), 0, 1e3)])
+def test_prefetch_cannot_overflow_the_cache_at_high_ca(shape, seed, m):
+    # 576 and 480 pores (above the 400-unknown switch to the low-rank solver) at Ca = 1e-2, at both
+    # ends of the viscosity-ratio range: many menisci move at once, so a single solve asks for many
+    # new columns while prefetched ones fill the cache; prefetched columns used to be capped by
+    # their budget only and overflowed the cache (ValueError "could not broadcast ... (139,577)
+    # into shape (136,577)" for the 2-D case, "(4,481) into shape (2,481)" for the 3-D one)
+    net = lattice_network(shape, SPACING, np.random.default_rng(seed))
+    fl = Fluids(mu_w=1e-3, mu_n=1e-3 * m)
+    _same_drainage(_three_solvers(net, fl, rate=_rate_for_ca(net, fl, 1e-2)))
+
+
+def test_prefetch_cannot_overflow_the_cache_at_constant_pressure():
+    # constant inlet pressure 5 % above the quasi-static breakthrough pressure on 960 pores: every
+    # inlet meniscus above its threshold opens in the first event (a large first batch of columns)
+    net = lattice_network((12, 10, 8), SPACING, np.random.default_rng(3))
+    fl = Fluids()
+    ip = invasion_percolation(net, fl, stop_at_breakthrough=True)
+    p_bt = float(ip.capillary_pressure[ip.breakthrough_step])
+    runs = _three_solvers(net, fl, inlet_pressure=1.05 * p_bt)
+    _same_drainage(runs)
+    # without refactorisations forced by round-off, prefetching leaves the factorisation schedule alone
+    assert runs[1].counters["n_solver_setups"] == runs[2].counters["n_solver_setups"] > 1

@@ -15,8 +15,10 @@ Every event changes a few conductances, so the solver reuses work across events:
   batches (one triangular solve with several right-hand sides costs far less per column than
   single ones: 32-43 ms instead of 82 ms at 100k unknowns); with each batch that is needed anyway
   go the columns of rows the engine expects to change soon (``hint``: the pores being filled and
-  the next pores to be invaded, with their neighbours), within a budget of unused slots so that
-  prefetching never forces an earlier refactorisation. Every solve is checked
+  the next pores to be invaded, with their neighbours), within a budget of unused slots and the
+  slots left free. When to refactorise is decided from the asked-for columns alone, so
+  prefetching neither forces nor delays a refactorisation (only the residual-check fallback
+  below depends on round-off). Every solve is checked
   by its residual and refined once if needed; a residual that stays large triggers a fresh
   factorisation, so the answer is a direct solve's to round-off.
 * ``'direct'``: a fresh sparse LU per solve (cheapest for a few hundred unknowns).
@@ -145,12 +147,28 @@ class PressureSolver:
         self.n_setups += 1
         self.seconds_setup += time.perf_counter() - t0
 
+    def _needs_new_base(self, T):
+        """Whether caching the columns of ``T`` would exceed the slots of asked-for columns.
+
+        Counted without the prefetched-but-unused columns (they have their own ``budget`` of
+        slots), so prefetching neither forces nor delays a refactorisation. The ``64`` slots above
+        ``max_rank`` in the cache hold the columns of the right-hand side's nonzeros and of rows
+        that changed and changed back since the base (counted asked-for, not in ``S``).
+        """
+        base = self._base
+        n_asked = base["ncols"] - base["n_pref"]
+        n_new = np.count_nonzero(base["col_of"][T] < 0) + np.count_nonzero(base["pref"][T])
+        return n_asked + n_new > base["WT"].shape[0] - base["budget"]
+
     def _columns(self, nodes, hint=None):
         """Cache ``A0^-1 e_v`` for the given nodes (one batched base solve for the missing ones).
 
         When some are missing, missing ``hint`` nodes join the same batch. Prefetched columns not
-        (yet) asked for occupy at most ``budget`` extra slots of the cache, so prefetching never
-        forces an earlier refactorisation.
+        (yet) asked for occupy at most ``budget`` extra slots of the cache, and never more than the
+        slots left free after the columns asked for: the cache cannot overflow. The caller decides
+        when to refactorise from the *asked-for* columns alone (:meth:`_needs_new_base`), so the
+        sequence of base factorisations, hence every answer, is the same with and without
+        prefetching.
         """
         base = self._base
         hit = nodes[base["pref"][nodes]]
@@ -161,8 +179,11 @@ class PressureSolver:
         if new.size and room > 0 and hint is not None:
             h = np.asarray(hint(), dtype=np.int64)
             extra = np.setdiff1d(h[base["col_of"][h] < 0], new)
-            if extra.size:
-                extra = extra[:room]
+            # the asked-for columns always fit (the caller refactorises otherwise); prefetched ones
+            # take what remains of the budget *and* of the free slots after them
+            fit = base["WT"].shape[0] - base["ncols"] - new.size
+            if extra.size and fit > 0:
+                extra = extra[:min(room, fit)]
                 new = np.concatenate([new, extra])
                 base["pref"][extra] = True
                 base["n_pref"] += extra.size
@@ -188,8 +209,7 @@ class PressureSolver:
             nz = np.flatnonzero(dd)
             S = np.unique(base["rows"][nz])
             T = np.union1d(S, np.flatnonzero(b))  # rows the solution is a combination of
-            free = base["WT"].shape[0] - base["ncols"]
-            if S.size > self.max_rank or np.count_nonzero(base["col_of"][T] < 0) > free:
+            if S.size > self.max_rank or self._needs_new_base(T):
                 self._factor(A)
                 continue
             cT = self._columns(T, hint)
