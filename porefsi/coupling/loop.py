@@ -178,6 +178,7 @@ class CoupledRun:
         self._static_lu_at: tuple[np.ndarray, float] | None = None
         self._tdg_system = _TangentLog(self.model)
         self._tdg_stale = True
+        self._tdg_pin_dt: float | None = None  # dt of the restored stepper whose tangent is pinned
         self._update_nodes = None  # per-pore nodes of the geometric update (built on first use)
         # extractions by voxel-image digest (re-extraction mode), seeded with the reference image's
         self._extractions = {hashlib.sha1(np.ascontiguousarray(problem.image.phases).tobytes()).digest():
@@ -191,6 +192,9 @@ class CoupledRun:
     # ---- solid --------------------------------------------------------------------------
     def _stepper_for(self, dt: float):
         if self._stepper is None or self._stepper.dt != dt:
+            if self._tdg_pin_dt is not None and dt != self._tdg_pin_dt:
+                self._tdg_system.pin = None  # the checkpointed stepper had another dt: a fresh start
+            self._tdg_pin_dt = None
             cc = self.problem.case.coupling
             self._stepper = TDGStepper(self._tdg_system, dt, n_iter=cc.tdg_iterations, make_solver=self._make_solver,
                                        tangent="auto", load_rule=cc.tdg_load_rule)
@@ -463,10 +467,15 @@ class CoupledRun:
         if self._static_lu_at is not None:
             arrays["static_lu_u"] = self._static_lu_at[0]
             meta["static_lu_t"] = self._static_lu_at[1]
-        at = self._tdg_system.last
-        if self._stepper is not None and at is not None and not self._tdg_stale:
+        if self._tdg_system.pin is not None:  # restored, not stepped yet: still the same tangent
+            at, dt = self._tdg_system.pin, self._tdg_pin_dt
+        elif self._stepper is not None and self._tdg_system.last is not None and not self._tdg_stale:
+            at, dt = self._tdg_system.last, self._stepper.dt
+        else:
+            at = dt = None
+        if at is not None:
             arrays["tdg_tangent_u"] = at[0]
-            meta["tdg_tangent_t"] = at[1]
+            meta["tdg_tangent_t"], meta["tdg_tangent_dt"] = at[1], dt
         return arrays, meta
 
     @classmethod
@@ -490,6 +499,7 @@ class CoupledRun:
             run._static_lu_at = (np.array(arrays["static_lu_u"], dtype=float), float(meta["static_lu_t"]))
         if "tdg_tangent_u" in arrays:  # the stepper's first tangent is the checkpointed run's
             run._tdg_system.pin = (np.array(arrays["tdg_tangent_u"], dtype=float), float(meta["tdg_tangent_t"]))
+            run._tdg_pin_dt = float(meta["tdg_tangent_dt"])
         return run
 
 
