@@ -400,6 +400,11 @@ class DrainageResult:
         wetting saturation, inlet pressure Pa (= capillary pressure inlet minus outlet, the outlet
         being at 0; NaN for events whose solve was skipped), wetting and non-wetting outflow rates
         m³/s, cumulative events and solves, relative mass balance error, number of full pores.
+        ``mass_balance_error`` is ``|V_in + V_def - V_stored - V_out,n| / (V_in + |V_def|)`` after
+        the event, with ``V_in`` the prescribed ``Q t`` at constant rate (the integrated computed
+        inflow at constant inlet pressure, where it checks the bookkeeping only) and ``V_def`` the
+        volume booked by :meth:`DrainageSimulator.with_network` / ``remap``;
+        ``injected_m3`` is ``V_in``.
     snapshots : list of FlowState
         States at the requested ``times`` (and at the end).
     invasion_time : ndarray, shape (Np,)
@@ -427,7 +432,7 @@ class DrainageResult:
 
     @property
     def mass_balance_error(self) -> float:
-        """Largest relative mass balance error over all events."""
+        """Largest relative mass balance error over all events (see ``history``; against Q t at constant rate)."""
         m = self.history["mass_balance_error"]
         return float(m.max()) if m.size else 0.0
 

@@ -48,7 +48,8 @@ class FlowState:
     inlet_pressure : float
         Pressure of the virtual inlet node, Pa (NaN when not computed, see ``pressure_current``).
     injected_volume, nw_outflow_volume, w_outflow_volume : float
-        Cumulative volumes, m³.
+        Cumulative volumes, m³. At constant rate ``injected_volume`` is ``Q t`` (prescribed); at
+        constant inlet pressure it is the time integral of the computed non-wetting inflow.
     deformation_volume : float
         Non-wetting volume created by carrying the state onto deformed networks, m³ (saturations
         are kept, so a pore that grows holds more non-wetting fluid).
@@ -92,7 +93,13 @@ class FlowState:
 
     @property
     def mass_balance_error(self) -> float:
-        """``(injected + deformation - stored - nw outflow) / (injected + |deformation|)``, 0 at t = 0."""
+        """``|injected + deformation - stored - nw outflow| / (injected + |deformation|)``, 0 at t = 0.
+
+        At constant rate ``injected`` is the prescribed ``Q t``, so this measures how well the
+        fluxes of the pressure solves (rescaled to sum to Q) integrate to the injected volume. At
+        constant inlet pressure ``injected`` is the integrated computed inflow, so this checks the
+        volume bookkeeping only.
+        """
         den = self.injected_volume + abs(self.deformation_volume)
         if den <= 0:
             return 0.0
