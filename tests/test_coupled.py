@@ -623,3 +623,19 @@ def test_extraction_cache_can_be_disabled():
     skip = ("wall_s", "n_solves")
     for a, b in zip(cached, fresh, strict=True):
         assert {k: v for k, v in a.items() if k not in skip} == {k: v for k, v in b.items() if k not in skip}
+
+
+def test_strain_loading_needs_solid_joining_the_load_faces(tmp_path):
+    """Two solid slabs, one on each z face, with the pore layer between them: each slab is held by
+    a face (no floating grain) but nothing carries load from zmin to zmax, so an axial strain rate
+    is refused with a MeshError naming the faces; fluid loading alone (no frame) still builds."""
+    from porefsi.errors import MeshError
+
+    ph = np.zeros((12, 12, 12), dtype=np.uint8)
+    ph[:, :, 4:8] = 1  # a pore layer spanning x: solid below (z < 4) and above (z >= 8)
+    np.save(tmp_path / "slabs.npy", ph)
+    case = _small(image={"path": str(tmp_path / "slabs.npy"), "voxel_size": 5e-6},
+                  solid={"coarsen": 2, "strain_rate": 1e-4, "load_axis": "z"})
+    with pytest.raises(MeshError, match="no connected solid joins the zmin and zmax faces"):
+        build_problem(case)
+    build_problem(case.replace(solid={"coarsen": 2, "strain_rate": 0.0, "load_axis": "z"}))

@@ -99,7 +99,8 @@ class SolidConfig:
     density: float = _f(2650.0, "grain density (quartz sandstone)", lo=0.0, lo_open=True, unit="kg/m^3")
     linear_solver: str = _f("direct", "solid linear solves: direct = sparse LU factorised once and reused while the "
                             "tangent holds (fastest to ~1e5 dofs); amg = CG + smoothed aggregation (large meshes); "
-                            "jacobi = Jacobi-CG; auto = direct below 3000 dofs, else amg",
+                            "jacobi = Jacobi-CG; auto = AMG-CG for a matrix's first 20 solves, then a reused LU "
+                            "of it up to 1e5 dofs",
                             choices=("direct", "amg", "jacobi", "auto"))
     load_axis: str = _f("z", "axis of the mechanical load (fixed low face, moving high face)",
                         choices=("x", "y", "z"))

@@ -23,7 +23,7 @@ from porefsi.image.ops import crop, percolating_cluster
 from porefsi.image.voxel_image import VoxelImage, axis_index
 from porefsi.network.extract import Extraction, extract_network
 from porefsi.network.network import Network
-from porefsi.solid.bc import uniaxial_bcs
+from porefsi.solid.bc import check_load_path, uniaxial_bcs
 from porefsi.solid.materials import make_material
 from porefsi.solid.mesh import MeshResult, SolidMesh, mesh_solid
 from porefsi.solid.model import SolidModel
@@ -158,6 +158,8 @@ def build_problem(case: Case) -> CoupledProblem:
     mres = mesh_solid(img, coarsen=sc.coarsen, support_axis=sc.load_axis)
     material = make_material(sc.material, E=sc.E, nu=sc.nu, density=sc.density)
     ax = axis_index(sc.load_axis)
+    if sc.strain_rate != 0:
+        check_load_path(mres.mesh, ax)  # a load frame needs solid joining its two faces
     length = img.extent[ax]
     bcs = uniaxial_bcs(ax, rate=-sc.strain_rate * length)
     model = SolidModel(mres.mesh, material, bcs, order=sc.order, linear_solver=sc.linear_solver)
