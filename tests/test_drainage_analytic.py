@@ -6,6 +6,7 @@ import pytest
 from porefsi.flow.drainage import DrainageSimulator, simulate_drainage
 from porefsi.flow.fluids import Fluids
 from porefsi.flow.invasion import invasion_percolation
+from porefsi.flow.state import PORE_EMPTY, THROAT_PINNED
 from porefsi.network.geometry import cylinder_resistance, resistance_factors
 from porefsi.network.lattice import chain_network, parallel_paths_network, tube_network
 
@@ -119,3 +120,51 @@ def test_series_of_throats_pc_s_staircase_equals_entry_pressures(rng):
     assert viscous < 1e-4 * staircase.min()
     assert np.all(pmax[grow] >= staircase * (1 - 1e-12))
     assert np.all(pmax[grow] <= staircase + viscous)
+
+
+def _repin_network():
+    """Parallel paths (throats 0-1, 0-2, 1-3, 2-3) with a small pore 1 and a narrow throat 1-3.
+
+    Pore-body pressures 2 sigma / R: 2 kPa for pores 0, 2, 3 (R = 30 um), 5 kPa for pore 1
+    (12 um). Entry pressures: 0-1 5.22 kPa (11.5 um, opens first), 0-2 5.45 kPa (11 um),
+    1-3 15 kPa (4 um: a large wetting resistance behind pore 1), 2-3 2.4 kPa (25 um).
+    """
+    net = parallel_paths_network(30e-6, [11.5e-6, 11e-6, 4e-6, 25e-6], 1e-4)
+    R = np.array([30e-6, 12e-6, 30e-6, 30e-6])
+    c = net.throat_conns
+    dist = np.linalg.norm(net.pore_coords[c[:, 1]] - net.pore_coords[c[:, 0]], axis=1)
+    return net.replace(pore_radius=R, pore_volume=4.0 / 3.0 * np.pi * R**3,
+                       throat_pore_length=np.column_stack([R[c[:, 0]], R[c[:, 1]]]),
+                       throat_length=dist - R[c[:, 0]] - R[c[:, 1]])
+
+
+def test_backward_meniscus_is_re_pinned():
+    # While the meniscus 0 -> 1 is the only active one, P_0 - P_2 = Pc_b,1 + Q (1/g_n,01 + 1/g_w,13)
+    # (pore 2 is a wetting dead end at the outlet-side pressure) exceeds the entry pressure of 0-2,
+    # which opens. With 0-2 open the non-wetting fluid needs only Pc_b,2 = 2 kPa to enter pore 2, the
+    # inlet pressure drops and P_0 - P_1 = Pc_b,2 + Q (1/g_n,02 + 1/g_w,23) < Pc_b,1: the meniscus in
+    # 0-1 would move backwards, so it is re-pinned (stalled) and all of Q fills pore 2 at
+    #   P_in = Pc_b,2 + Q [mu_n (h_in + h_02) + mu_w (h_23 + h_out)]   (series resistances).
+    # Without the re-pinning the solve lets 0-1 carry a backward flux and P_in comes out lower.
+    net = _repin_network()
+    fl = Fluids()
+    h = resistance_factors(net).sum(axis=1)
+    pcb = fl.capillary_pressure(net.pore_radius)
+    pe = fl.capillary_pressure(net.throat_radius)
+    Q = 1500.0 / (fl.mu_n * h[0] + fl.mu_w * h[2])  # 1.5 kPa of viscous drop along 0-1-3
+    assert pcb[1] + Q * (fl.mu_n * h[0] + fl.mu_w * h[2]) > max(pe[1], pcb[2])  # 0-2 opens with 0-1
+    assert pcb[2] + Q * (fl.mu_n * h[1] + fl.mu_w * h[3]) < pcb[1]  # and then 0-1 is pushed back
+    h_in = cylinder_resistance(net.pore_radius[0], 0.5e-4)
+    h_out = cylinder_resistance(net.pore_radius[3], 0.5e-4)
+    p_in = pcb[2] + Q * (fl.mu_n * (h_in + h[1]) + fl.mu_w * (h[3] + h_out))
+    V = net.pore_volume
+    sim = DrainageSimulator(net, fl, rate=Q)
+    st = sim.advance_to((V[0] + 0.5 * V[2]) / Q)  # halfway through the filling of pore 2
+    assert st.inlet_pressure == pytest.approx(p_in, rel=1e-9)
+    assert st.throat_invaded[0] and st.throat_state[0] == THROAT_PINNED
+    assert st.pore_state[1] == PORE_EMPTY and st.nw_saturation[1] == 0.0
+    assert st.nw_saturation[2] == pytest.approx(0.5, rel=1e-12)
+    sim.advance_to(1e3, stop_at_breakthrough=True)
+    t = sim.invasion_time()
+    assert t[2] == pytest.approx((V[0] + V[2]) / Q, rel=1e-12)
+    assert np.isnan(t[1])  # the stalled meniscus never resumed before breakthrough (through 2-3)
