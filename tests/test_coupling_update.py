@@ -145,3 +145,22 @@ def test_pores_without_wall_nodes_take_the_surrounding_field(rng):
     np.testing.assert_array_equal(old.pore_volume[1:], net.pore_volume[1:])
     with pytest.raises(InputError, match="spacing"):
         update_nodes(net.pore_coords, net.pore_radius, nodes, pts, spacing=0.0)
+
+
+def test_deformed_image_shortcut_below_a_quarter_voxel_is_exact(rng):
+    """Below a quarter voxel of displacement the voxelisation cannot move any voxel: the shortcut
+    returns the reference image, equal to the full fixed-point voxelisation; above it, the full
+    computation runs (and moves voxels)."""
+    ph = (rng.random((16, 16, 16)) < 0.4).astype(np.uint8)
+    img = VoxelImage(ph, 1e-6)
+    g = np.arange(9) * 2e-6
+    P = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    for scale in (1e-17, 1e-9, 0.249e-6):
+        u = scale * rng.uniform(-1.0, 1.0, P.shape)
+        fast = deformed_image(img, P, u, 2e-6)
+        assert fast.phases is img.phases  # the shortcut was taken
+        assert np.array_equal(fast.phases, deformed_image(img, P, u, 2e-6, shortcut=False).phases)
+    u = np.zeros_like(P)
+    u[:, 0] = 0.6e-6  # beyond half a voxel: every voxel takes its neighbour's phase along x
+    moved = deformed_image(img, P, u, 2e-6)
+    assert np.array_equal(moved.phases[1:], ph[:-1])

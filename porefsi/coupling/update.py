@@ -218,7 +218,8 @@ def displacement_on_grid(points, u, spacing: float, shape, origin=(0.0, 0.0, 0.0
     return grid
 
 
-def deformed_image(image: VoxelImage, points, u, spacing: float, n_fixed_point: int = 2) -> VoxelImage:
+def deformed_image(image: VoxelImage, points, u, spacing: float, n_fixed_point: int = 2,
+                   shortcut: bool = True) -> VoxelImage:
     """Voxelise the deformed solid on the reference image grid.
 
     A voxel centre ``x`` is solid when the reference point ``X`` with ``X + u(X) = x`` is solid;
@@ -235,10 +236,24 @@ def deformed_image(image: VoxelImage, points, u, spacing: float, n_fixed_point: 
         Mesh node spacing, m (``voxel_size * coarsen``).
     n_fixed_point : int, default 2
         Fixed-point iterations (each gains a factor |grad u|; strains are < 1e-2).
+    shortcut : bool, default True
+        Return the reference image unchanged, without voxelising, when every displacement
+        component is below a quarter voxel. This is exact: the interpolated displacement is
+        bounded by the largest nodal component, so every source point stays within a quarter
+        voxel of its voxel centre, i.e. in the same voxel (a centre is half a voxel from every
+        face). At the paper's loads (|u| ~ 1e-11 m, voxels 5.3e-6 m) this skips the whole
+        voxelisation (~0.35 s per exchange step on the 120³ sample).
+
+    Returns
+    -------
+    VoxelImage
+        The deformed solid on the reference grid (same voxel size and origin).
     """
     vs = image.voxel_size
     gshape = np.floor(np.asarray(image.shape) * vs / spacing + 1e-9).astype(int) + 1
     grid = displacement_on_grid(points, u, spacing, gshape, image.origin)
+    if shortcut and float(np.max(np.abs(grid), initial=0.0)) < 0.25 * vs:
+        return VoxelImage(image.phases, vs, image.origin)
     nx, ny, nz = image.shape
     out = np.empty(image.shape, np.uint8)
     jj, kk = np.meshgrid(np.arange(ny), np.arange(nz), indexing="ij")
