@@ -219,12 +219,28 @@ def _check_coupling_stability(saved, out):
     for E in {r["E"] for r in rows}:
         none_it, aitken_it = by[E, "none"]["iterations_to_tol"], by[E, "aitken"]["iterations_to_tol"]
         assert aitken_it is not None and (none_it is None or aitken_it <= none_it)
+    # the 1-D capillary model (filling pore load ~ V^-4/3) predicts the plain factor within 25 %
+    model = saved["gain_model"]["neo-hookean"]
+    assert all(0.75 < q < 1.1 for q in model["ratio_measured_over_predicted"])
+    # amplified loop gain: the transcribed loop is CoupledRun's; beyond kappa = 1/g the plain
+    # iteration diverges (distance to the fixed point grows) and Aitken converges to the fixed point
+    amp = saved["amplified"]
+    assert amp["transcription_check"]["none"]["max_rel_diff"] < 1e-5
+    assert amp["kappa_critical_predicted"] == pytest.approx(1.0 / amp["physical_factor"])
+    arows = {(r["kappa"], r["relaxation"]): r for r in amp["rows"]}
+    k_hi = max(r["kappa"] for r in amp["rows"])
+    assert k_hi > amp["kappa_critical_predicted"]
+    plain, aitken = arows[k_hi, "none"], arows[k_hi, "aitken"]
+    assert plain["factor"] > 1.0 and plain["error_history"][-1] > 10 * plain["error_history"][0]
+    assert aitken["status"] == "ran" and aitken["final_error"] < 1e-6
+    assert arows[1.0, "none"]["final_error"] < 1e-9
 
 
 #: case -> (figures its smoke run draws, check of its results.json)
 SMOKE = {
     "cost": (["cost_by_stage.png"], _check_cost),
-    "coupling_stability": (["stability_histories.png", "stability_vs_E.png"], _check_coupling_stability),
+    "coupling_stability": (["stability_amplified.png", "stability_histories.png", "stability_vs_E.png"],
+                           _check_coupling_stability),
     "drainage": (["drainage_panel.png", "timeseries.png"], _check_drainage),
     "flow_rates": (["flow_rates.png"], _check_flow_rates),
     "precoupling": (["coupled_strained.png", "ea_iterations.png", "psd_strained.png", "reextract_vs_geometric.png"],
