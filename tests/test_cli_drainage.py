@@ -38,8 +38,11 @@ def test_cli_drainage_writes_outputs_and_json(net_file, tmp_path, capsys):
     assert any(line.endswith(",") for line in lines[1:]) or s["final_sw"] == 0
     snaps = sorted(out.glob("snapshot_*.csv"))
     assert len(snaps) == 2
-    snap = np.genfromtxt(snaps[-1], delimiter=",", names=True)
-    assert np.all((snap["nw_saturation"] >= 0) & (snap["nw_saturation"] <= 1))
+    for k, t_snap in enumerate((10.0, 20.0)):  # --snapshots 2 over 20 s: evenly spaced, ending at t_end
+        snap = np.genfromtxt(out / f"snapshot_{k}.csv", delimiter=",", names=True)
+        np.testing.assert_array_equal(snap["time_s"], t_snap)
+        np.testing.assert_array_equal(snap["pore"], np.arange(net.n_pores))
+        assert np.all((snap["nw_saturation"] >= 0) & (snap["nw_saturation"] <= 1))
 
 
 @pytest.mark.parametrize("argv, msg", [

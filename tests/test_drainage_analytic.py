@@ -78,6 +78,37 @@ def test_pore_chain_constant_rate_pressure_plateaus():
     np.testing.assert_allclose(np.diff(np.concatenate([[0.0], t])), net.pore_volume / Q, rtol=1e-12)
 
 
+def test_pore_chain_snapshots_fluid_pressure_and_breakthrough_sw():
+    # Snapshot while pore k = 2 fills at rate Q with saturation s = 0.3: the scheme's pressure of a
+    # filling or empty pore is its wetting pressure, Q times the wetting resistance to the outlet;
+    # the wall load of the filling pore is the volume average s P_n + (1 - s) P_w with
+    # P_n = P_w + Pc_b (its meniscus at the body pressure); full pores carry the non-wetting
+    # pressure, one meniscus conduit (non-wetting) and Pc_b,2 above pore 2. Breakthrough: the last
+    # pore fills at t = sum(V) / Q and every pore is then full, Sw = 0.
+    net, R, rt = _chain()
+    fl = Fluids()
+    Q = 2e-11
+    V = net.pore_volume
+    h_int = resistance_factors(net).sum(axis=1)
+    hs = np.concatenate([[cylinder_resistance(R[0], 0.5e-4)], h_int, [cylinder_resistance(R[-1], 0.5e-4)]])
+    k, s = 2, 0.3
+    times = [(V[:k].sum() + s * V[k]) / Q, 0.999 * V.sum() / Q]
+    res = simulate_drainage(net, fl, rate=Q, t_end=2 * V.sum() / Q, times=times, stop_at_breakthrough=True)
+    assert [st.t for st in res.snapshots[:2]] == times
+    st = res.snapshots[0]
+    pw = Q * fl.mu_w * np.array([hs[j + 1:].sum() for j in range(R.size)])  # wetting, downstream
+    pcb = fl.capillary_pressure(R)
+    assert st.nw_saturation[k] == pytest.approx(s, rel=1e-12)
+    np.testing.assert_allclose(st.pressure[k:], pw[k:], rtol=1e-9)
+    assert st.fluid_pressure[k] == pytest.approx(pw[k] + s * pcb[k], rel=1e-9)
+    p_full = pw[k] + pcb[k] + Q * fl.mu_n * np.array([hs[j + 1:k + 1].sum() for j in range(k)])
+    np.testing.assert_allclose(st.pressure[:k], p_full, rtol=1e-9)
+    others = np.arange(R.size) != k
+    np.testing.assert_array_equal(st.fluid_pressure[others], st.pressure[others])
+    assert res.breakthrough_time == pytest.approx(V.sum() / Q, rel=1e-12)
+    assert res.breakthrough_sw == pytest.approx(0.0, abs=1e-14)
+
+
 def test_two_parallel_paths_critical_rate():
     # Inlet pore 0 feeds branch 1 (wide throat, opens first) and branch 2 (narrow throat 0-2).
     # While 1 fills, P_0 - P_2 = Pc_b,1 + Q (1/g_n(0-1) + 1/g_w(1-3)), so 0-2 opens during the filling
@@ -168,3 +199,7 @@ def test_backward_meniscus_is_re_pinned():
     t = sim.invasion_time()
     assert t[2] == pytest.approx((V[0] + V[2]) / Q, rel=1e-12)
     assert np.isnan(t[1])  # the stalled meniscus never resumed before breakthrough (through 2-3)
+    # breakthrough when pore 3 is full: everything but pore 1 holds non-wetting fluid
+    res = simulate_drainage(net, fl, rate=Q, t_end=1e3, stop_at_breakthrough=True)
+    assert res.breakthrough_time == pytest.approx(V[[0, 2, 3]].sum() / Q, rel=1e-12)
+    assert res.breakthrough_sw == pytest.approx(V[1] / V.sum(), rel=1e-12)

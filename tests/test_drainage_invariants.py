@@ -5,7 +5,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from porefsi.flow.drainage import DrainageSimulator
+from porefsi.flow.drainage import DrainageSimulator, simulate_drainage
 from porefsi.flow.fluids import Fluids
 from porefsi.flow.invasion import invasion_percolation
 from porefsi.network.lattice import lattice_network
@@ -78,6 +78,10 @@ def test_low_ca_invasion_order_equals_invasion_percolation_with_trapping(rng, sh
     ip_order = np.argsort(np.where(ip.pore_sequence < 0, 2**62, ip.pore_sequence))[: ip.breakthrough_step + 1]
     order, _ = _dynamic_order(net, fl, 1e-8)
     np.testing.assert_array_equal(order, ip_order)
+    # same pores full at breakthrough, so the same breakthrough saturation (trapped pores keep Sw = 1)
+    res = simulate_drainage(net, fl, rate=_rate_for_ca(net, fl, 1e-8), t_end=1e9, stop_at_breakthrough=True)
+    assert res.breakthrough_sw == pytest.approx(ip.sw[ip.breakthrough_step], rel=1e-12)
+    assert 0.3 < res.breakthrough_sw < 0.9
     # At Ca = 1e-6 the viscous pressure may only swap pores whose thresholds differ by less than
     # the viscous overpressure the run shows (inlet pressure while a pore fills minus the jump
     # pressure that opened it); such a near-tie at the outlet may change the breakthrough pore.
