@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_timeseries", "plot_psd", "plot_pc_s", "render_network", "render_solid"]
+__all__ = ["plot_timeseries", "plot_psd", "plot_pc_s", "plot_drainage_pc_s", "render_network", "render_solid"]
 
 
 def _plt():
@@ -99,6 +99,56 @@ def plot_pc_s(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], path: str | P
     ax.set_ylabel("capillary pressure (kPa)")
     ax.set_xlim(0, 1)
     ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_drainage_pc_s(dynamic: tuple[Sequence[float], Sequence[float]],
+                       quasi_static: tuple[Sequence[float], Sequence[float]], path: str | Path, *,
+                       breakthrough_sw: float | None = None, title: str = "") -> Path:
+    """Dynamic Pc–S curve of a drainage next to the quasi-static (invasion percolation) one.
+
+    Parameters
+    ----------
+    dynamic : (sw, pc) pair of sequences of float
+        Wetting saturation and capillary pressure (inlet minus outlet), Pa, one entry per event
+        (e.g. ``history['sw']``, ``history['capillary_pressure_pa']``); NaN pressures (skipped
+        solves) leave gaps.
+    quasi_static : (sw, pc) pair of sequences of float
+        Wetting saturation and capillary pressure, Pa, after each invasion step (e.g.
+        ``InvasionResult.pc_curve()``); drawn as a staircase (the pressure holds until the next step).
+    path : str or Path
+        PNG file to write.
+    breakthrough_sw : float, optional
+        Wetting saturation at breakthrough of the dynamic run: a vertical marker.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    plt = _plt()
+    sw_d, pc_d = (np.asarray(v, float) for v in dynamic)
+    sw_q, pc_q = (np.asarray(v, float) for v in quasi_static)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    if sw_q.size:
+        # start the staircase at Sw = 1 with the first step's pressure (nothing invaded before it)
+        ax.step(np.concatenate([[1.0], sw_q]), np.concatenate([pc_q[:1], pc_q]) * 1e-3, where="pre", lw=1.5,
+                color="0.3", label="quasi-static (invasion percolation with trapping)")
+    ax.plot(sw_d, pc_d * 1e-3, "-", lw=1.0, color="C0", label="dynamic (inlet minus outlet pressure)")
+    if breakthrough_sw is not None and np.isfinite(breakthrough_sw):
+        ax.axvline(breakthrough_sw, color="C3", ls="--", lw=1.0, label=f"breakthrough, Sw = {breakthrough_sw:.3f}")
+    ax.set_xlabel("wetting saturation")
+    ax.set_ylabel("capillary pressure (kPa)")
+    ax.set_xlim(0, 1)
+    if title:
+        ax.set_title(title)
+    ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -33,6 +33,12 @@ def test_cli_drainage_writes_outputs_and_json(net_file, tmp_path, capsys):
     assert hist["time_s"][-1] == pytest.approx(20.0)
     # volume bookkeeping in the file: injected = rate * t (constant rate)
     np.testing.assert_allclose(hist["injected_m3"], rate * hist["time_s"], rtol=1e-10, atol=1e-30)
+    # capillary pressure = inlet minus outlet node pressure, the outlet at 0 by construction
+    assert "capillary_pressure_pa" in hist.dtype.names
+    np.testing.assert_array_equal(hist["capillary_pressure_pa"], hist["inlet_pressure_pa"])
+    assert np.nanmax(hist["capillary_pressure_pa"]) > 0
+    # the Pc-S figure: a PNG
+    assert (out / "pc_s.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     lines = (out / "invasion.csv").read_text().splitlines()
     assert lines[0] == "pore,time_s" and len(lines) == net.n_pores + 1
     assert any(line.endswith(",") for line in lines[1:]) or s["final_sw"] == 0

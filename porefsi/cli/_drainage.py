@@ -1,8 +1,12 @@
 """``porefsi drainage``: time-resolved two-phase drainage on a pore network (DPN).
 
-Writes ``DIR/drainage.csv`` (one row per event), ``DIR/invasion.csv`` (``pore,time_s``: when each
-pore became fully non-wetting, empty if never) and per-pore snapshots
-``DIR/snapshot_<k>.csv`` (``pore,time_s,pressure_pa,fluid_pressure_pa,nw_saturation,state``).
+Writes ``DIR/drainage.csv`` (one row per event, columns
+:data:`porefsi.flow.drainage.HISTORY_COLUMNS`; ``capillary_pressure_pa`` is the inlet minus the
+outlet node pressure, the outlet being at 0 by construction), ``DIR/invasion.csv``
+(``pore,time_s``: when each pore became fully non-wetting, empty if never), per-pore snapshots
+``DIR/snapshot_<k>.csv`` (``pore,time_s,pressure_pa,fluid_pressure_pa,nw_saturation,state``) and
+``DIR/pc_s.png``: the dynamic Pc–S curve next to the quasi-static one (invasion percolation with
+trapping on the same network and fluids).
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import numpy as np
 from porefsi.cli._common import emit, positive_float
 from porefsi.errors import InputError
 
-__all__ = ["register", "run"]
+__all__ = ["register", "run", "write_pc_s"]
 
 
 def register(subparsers) -> None:
@@ -41,7 +45,8 @@ def register(subparsers) -> None:
                    "degrees, in [0, 90) (default 0)")
     p.add_argument("--snapshots", type=int, default=5, metavar="K",
                    help="number of evenly spaced per-pore snapshots written to DIR (default 5)")
-    p.add_argument("-o", "--output", default=None, metavar="DIR", help="directory for the CSV outputs")
+    p.add_argument("-o", "--output", default=None, metavar="DIR",
+                   help="directory for the CSV outputs and the Pc-S figure pc_s.png")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=run)
 
@@ -76,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
             np.savetxt(out / f"snapshot_{k}.csv", np.column_stack(cols), delimiter=",",
                        header="pore,time_s,pressure_pa,fluid_pressure_pa,nw_saturation,state", comments="",
                        fmt=["%d", "%.10g", "%.10g", "%.10g", "%.10g", "%d"])
+        write_pc_s(out / "pc_s.png", net, fluids, args.axis, args.rate, res)
     c = res.counters
     summary = {
         "n_pores": net.n_pores, "n_dropped_pores": res.n_dropped,
@@ -87,3 +93,22 @@ def run(args: argparse.Namespace) -> int:
     }
     emit(summary, args.json)
     return 0
+
+
+def write_pc_s(path, net, fluids, axis, rate: float, res) -> Path:
+    """Draw the run's dynamic Pc–S curve next to the quasi-static one (IP with trapping) into ``path``."""
+    from porefsi.flow.invasion import invasion_percolation
+    from porefsi.plot import plot_drainage_pc_s
+
+    h = res.history
+    ip = invasion_percolation(net, fluids, axis=axis)
+    return plot_drainage_pc_s((h["sw"], h["capillary_pressure_pa"]), ip.pc_curve(), path,
+                              breakthrough_sw=res.breakthrough_sw,
+                              title=f"{net.n_pores} pores, Q = {rate:.3g} m^3/s, Ca = "
+                                    f"{fluids.capillary_number(rate, _face_area(net, axis)):.2g}")
+
+
+def _face_area(net, axis) -> float:
+    from porefsi.image.voxel_image import axis_index
+
+    return float(np.prod(np.delete(np.asarray(net.extent, float), axis_index(axis))))

@@ -55,15 +55,24 @@ from porefsi.image.voxel_image import axis_index
 from porefsi.network.network import Network
 
 __all__ = ["DrainageSimulator", "DrainageResult", "simulate_drainage", "PAPER_RATE", "PAPER_T_END",
-           "HISTORY_COLUMNS"]
+           "HISTORY_COLUMNS", "OUTLET_PRESSURE"]
 
 #: The paper's injection rate, m³/s, and injection time, s.
 PAPER_RATE = 1.25e-13
 PAPER_T_END = 20.0
 
-#: Columns of :attr:`DrainageResult.history` (one row per event).
-HISTORY_COLUMNS = ("time_s", "injected_m3", "sw", "inlet_pressure_pa", "w_outflow_m3_s", "nw_outflow_m3_s",
-                   "n_events", "n_solves", "mass_balance_error", "n_full")
+#: Pressure of the virtual outlet node, Pa (gauge): 0 by construction (the node is eliminated from
+#: the pressure system), so the capillary pressure inlet minus outlet equals the inlet pressure.
+OUTLET_PRESSURE = 0.0
+
+# what the engine stores per event (checkpoints pickle these rows: keep their layout)
+_ROW_COLUMNS = ("time_s", "injected_m3", "sw", "inlet_pressure_pa", "w_outflow_m3_s", "nw_outflow_m3_s",
+                "n_events", "n_solves", "mass_balance_error", "n_full")
+
+#: Columns of :attr:`DrainageResult.history` (one row per event): the stored ones plus
+#: ``capillary_pressure_pa`` = inlet minus outlet node pressure (:data:`OUTLET_PRESSURE`).
+HISTORY_COLUMNS = ("time_s", "injected_m3", "sw", "inlet_pressure_pa", "capillary_pressure_pa", "w_outflow_m3_s",
+                   "nw_outflow_m3_s", "n_events", "n_solves", "mass_balance_error", "n_full")
 
 
 def _positive(name, v, unit):
@@ -333,9 +342,16 @@ class DrainageSimulator:
         return new
 
     def history(self) -> dict:
-        """Time series so far, one row per event: dict of arrays keyed by :data:`HISTORY_COLUMNS`."""
-        rows = np.asarray(self._engine.rows, dtype=float).reshape(-1, len(HISTORY_COLUMNS))
-        return {k: rows[:, i].copy() for i, k in enumerate(HISTORY_COLUMNS)}
+        """Time series so far, one row per event: dict of arrays keyed by :data:`HISTORY_COLUMNS`.
+
+        ``capillary_pressure_pa`` is the inlet minus the outlet node pressure; the outlet is at
+        :data:`OUTLET_PRESSURE` = 0 by construction, so it equals ``inlet_pressure_pa`` (NaN where
+        a skipped solve left the pressure undetermined).
+        """
+        rows = np.asarray(self._engine.rows, dtype=float).reshape(-1, len(_ROW_COLUMNS))
+        h = {k: rows[:, i].copy() for i, k in enumerate(_ROW_COLUMNS)}
+        h["capillary_pressure_pa"] = h["inlet_pressure_pa"] - OUTLET_PRESSURE
+        return {k: h[k] for k in HISTORY_COLUMNS}
 
     def invasion_time(self) -> np.ndarray:
         """Time each pore became full of non-wetting fluid, s, shape (Np,) (NaN if never)."""
@@ -397,9 +413,13 @@ class DrainageResult:
     ----------
     history : dict of str to ndarray
         Time series, one row per event (:data:`HISTORY_COLUMNS`): time s, injected volume m³,
-        wetting saturation, inlet pressure Pa (= capillary pressure inlet minus outlet, the outlet
-        being at 0; NaN for events whose solve was skipped), wetting and non-wetting outflow rates
-        m³/s, cumulative events and solves, relative mass balance error, number of full pores.
+        wetting saturation, inlet pressure Pa (NaN for events whose solve was skipped), capillary
+        pressure Pa (``capillary_pressure_pa``: inlet minus outlet node pressure; the outlet is at
+        :data:`OUTLET_PRESSURE` = 0 by construction, so it equals the inlet pressure), wetting and
+        non-wetting outflow rates m³/s, cumulative events and solves, relative mass balance error,
+        number of full pores. Plotted against ``sw`` it is the dynamic Pc–S curve (viscous pressure
+        drops included), next to the quasi-static one of
+        :func:`~porefsi.flow.invasion.invasion_percolation`.
         ``mass_balance_error`` is ``|V_in + V_def - V_stored - V_out,n| / (V_in + |V_def|)`` after
         the event, with ``V_in`` the prescribed ``Q t`` at constant rate (the integrated computed
         inflow at constant inlet pressure, where it checks the bookkeeping only) and ``V_def`` the
