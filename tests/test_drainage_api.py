@@ -22,6 +22,12 @@ def test_bad_rate(rng, rate):
         DrainageSimulator(lattice_network((3, 3, 1), 1e-4, rng), rate=rate)
 
 
+@pytest.mark.parametrize("solver", ["lu", "AMG", None])
+def test_unknown_solver_is_an_input_error_naming_the_choices(rng, solver):
+    with pytest.raises(InputError, match=r"unknown pressure solver .*'auto', 'lowrank', 'direct', 'amg', 'jacobi'"):
+        DrainageSimulator(lattice_network((3, 3, 1), 1e-4, rng), rate=1e-12, solver=solver)
+
+
 def test_no_inlet_or_outlet_on_axis(rng):
     net = lattice_network((4, 4, 1), 1e-4, rng)
     net = net.replace(pore_faces=np.zeros_like(net.pore_faces))

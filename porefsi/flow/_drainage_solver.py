@@ -40,9 +40,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from porefsi.errors import ConvergenceError
+from porefsi.errors import ConvergenceError, InputError
 
 __all__ = ["PressureSolver"]
+
+_METHODS = ("auto", "lowrank", "direct", "amg", "jacobi")
 
 
 class PressureSolver:
@@ -64,10 +66,12 @@ class PressureSolver:
 
     def __init__(self, n: int, method: str = "auto", rtol: float = 1e-11, maxiter: int = 2000,
                  direct_max: int = 400, max_rank: int | None = None):
+        if method not in _METHODS:
+            raise InputError(f"unknown pressure solver {method!r}; choose one of "
+                             f"{', '.join(repr(m) for m in _METHODS)} ('auto': 'direct' up to {direct_max} "
+                             "unknowns, else 'lowrank')")
         if method == "auto":
             method = "direct" if n <= direct_max else "lowrank"
-        if method not in ("direct", "lowrank", "amg", "jacobi"):
-            raise ValueError(f"unknown solver method {method!r}")
         self.method = method
         self.n = int(n)
         self.rtol = rtol

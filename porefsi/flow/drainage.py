@@ -102,8 +102,12 @@ class DrainageSimulator:
         Constant inlet pressure, Pa (gauge, outlet at 0), instead of a constant rate.
     axis : {'x', 'y', 'z'}
         Flow direction: inlet on its low face, outlet on its high face.
-    solver : {'auto', 'direct', 'amg', 'jacobi'}
-        Pressure solver ('auto': sparse LU up to 5000 pores, else AMG-preconditioned CG).
+    solver : {'auto', 'lowrank', 'direct', 'amg', 'jacobi'}
+        Pressure solver. 'auto': 'direct' up to 400 unknowns (kept pores plus the inlet node),
+        else 'lowrank'. 'direct': a fresh sparse LU per solve. 'lowrank': one sparse LU reused
+        across events through low-rank (Sherman–Morrison–Woodbury) updates of the rows that
+        changed, checked by its residual: a direct solve to round-off. 'amg': CG preconditioned by
+        a reused pyamg hierarchy. 'jacobi': diagonal-scaled CG (tests only).
     skip_solves : bool or 'auto'
         Skip the pressure solve after a quasi-static jump when a resistance bound proves that no
         other meniscus can move while the invaded pore fills (constant rate only; the outcome is
@@ -115,7 +119,7 @@ class DrainageSimulator:
     Raises
     ------
     InputError
-        Non-positive rate or non-finite inlet pressure.
+        Non-positive rate, non-finite inlet pressure or an unknown ``solver``.
     NetworkError
         No inlet or outlet pores on the axis, or no connected path between them.
 
