@@ -70,7 +70,7 @@ TIMESERIES_DOCS = {
     "mean_pore_radius_m": "mean pore radius of the current network, m",
     "n_events": "cumulative drainage filling events",
     "n_solves": "cumulative drainage pressure solves",
-    "mass_balance_error": "relative non-wetting volume balance of the drainage (round-off by construction)",
+    "mass_balance_error": "relative non-wetting volume balance of the drainage against the prescribed Q t (round-off)",
     "load_balance_error": "relative mismatch between the load the interface hands over and the pores carry",
     "subiterations": "fluid-solid sub-iterations of the step (0 at step 0)",
     "coupling_residual": "last relative displacement change of the sub-iterations (0 without)",
