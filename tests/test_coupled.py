@@ -117,6 +117,46 @@ def test_resumed_wall_seconds_are_cumulative(tmp_path):
     assert s["wall_seconds"] > s["wall_seconds_this_process"] > 0
 
 
+def test_cpu_seconds_by_stage():
+    """cpu_seconds_by_stage (time.process_time) has the stages of the wall-time breakdown, each
+    >= 0, and they sum to no more than the CPU time of the whole run measured around it."""
+    import tempfile
+    import time
+
+    with tempfile.TemporaryDirectory() as d:
+        c0 = time.process_time()
+        s = run_case(_small(), d, progress=False).summary
+        cpu = time.process_time() - c0
+    stages = s["cpu_seconds_by_stage"]
+    assert set(stages) == set(s["seconds_by_stage"])
+    assert {"image", "extraction", "mesh", "interface_build", "fluid", "interface", "solid", "update", "stress",
+            "permeability"} <= set(stages)
+    assert all(v >= 0 for v in stages.values())
+    assert stages["solid"] > 0 and stages["mesh"] > 0
+    assert sum(stages.values()) <= s["cpu_seconds_this_process"] <= cpu
+    assert s["cpu_seconds"] == s["cpu_seconds_this_process"]
+
+
+def test_resumed_cpu_seconds_are_cumulative(tmp_path):
+    """CPU time is checkpointed like the wall time: the resumed summary's stage CPU seconds
+    include the interrupted process's (up to its checkpoint), and so does cpu_seconds."""
+    from porefsi.io.results import load_checkpoint
+
+    out = tmp_path / "r"
+    run_case(_small(), out, progress=False, stop_after=2)
+    meta = load_checkpoint(out / "checkpoint.npz")[1]
+    saved_stage, saved_setup, saved = meta["cpu_seconds"], meta["setup_cpu_seconds"], meta["process_cpu_seconds"]
+    assert saved_stage["solid"] > 0 and saved > 0
+    recs = []
+    s = run_case(_small(), out, resume=True, progress=False, on_record=recs.append).summary
+    stages = s["cpu_seconds_by_stage"]
+    assert len(recs) == 1  # one more step on top of the checkpointed two
+    for k, v in saved_stage.items():  # the checkpointed stages plus the resumed step's
+        assert stages[k] == pytest.approx(v + recs[0].cpu_seconds[k], rel=1e-12, abs=1e-12), k
+    assert all(stages[k] == v for k, v in saved_setup.items())  # set-up counted once, in the first process
+    assert s["cpu_seconds"] == pytest.approx(saved + s["cpu_seconds_this_process"], rel=1e-6)
+
+
 def test_progress_eta_counts_only_this_process(monkeypatch):
     """After a resume from step 6 of 10, one step in 2 s leaves 3 steps: ETA 6 s (it used to
     divide by all 7 done steps: 0.9 s)."""
@@ -618,6 +658,8 @@ def test_extraction_cache_can_be_disabled():
     assert (rf.n_extractions, rf.n_extractions_reused) == (n, 0)
     assert rc.update_seconds["extract"] == 0.0 < rf.update_seconds["extract"]
     assert rc.update_seconds["voxelise"] > 0 and rf.update_seconds["voxelise"] > 0
+    assert rc.update_cpu_seconds["extract"] == 0.0 < rf.update_cpu_seconds["extract"]
+    assert sum(rf.update_cpu_seconds.values()) <= rf.cpu_seconds["update"]
     # A freshly extracted (equal) network is a new object, onto which the drainage is carried with
     # its solver state reset: one more pressure solve, every result the same.
     skip = ("wall_s", "n_solves")

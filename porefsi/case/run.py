@@ -239,8 +239,13 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     ``wall_seconds`` in the summary is cumulative over the processes of a resumed run: each
     interrupted process counts up to its last checkpoint (the steps it did after that are
     redone, and counted, by the resuming process); ``wall_seconds_this_process`` is this call's.
+    ``cpu_seconds`` / ``cpu_seconds_this_process`` are the same for CPU time
+    (``time.process_time``: this process, all threads), and ``cpu_seconds_by_stage`` is the CPU
+    counterpart of the wall-time ``seconds_by_stage`` (set-up stages, then the loop's, cumulative
+    over a resumed run like the totals).
     """
     t_start = time.perf_counter()
+    clock = _RunClock(time.process_time())
     out = Path(out if out is not None else case.output.dir)
     out.mkdir(parents=True, exist_ok=True)
     ckpt = out / "checkpoint.npz"
@@ -256,6 +261,7 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             raise ConfigError(f"--resume: the case differs from the one that started {str(out)!r}; "
                               "resume with the same case file or start a new run directory")
         wall_before = float(meta.get("wall_seconds", 0.0))
+        clock.cpu_before = float(meta.get("process_cpu_seconds", 0.0))
         # the steps after the checkpoint are redone: their files go (they are rewritten)
         _clear_outputs(out, after_step=int(meta["step_index"]))
     else:
@@ -280,11 +286,13 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             for s in series.values():
                 s.truncate(run.t)
             setup_seconds = meta["setup_seconds"]
+            clock.setup_cpu = dict(meta.get("setup_cpu_seconds", {}))
         else:
             run = CoupledRun(problem)
             rows, snapshots = [], []
             series = {k: results.PvdSeries(out / f"{k}.pvd") for k in ("solid", "network")}
             setup_seconds = dict(problem.seconds)
+            clock.setup_cpu = dict(problem.cpu_seconds)
             rec0 = run.initial_record()
             rows.append(rec0.row)
             _write_pores(out, rec0, _psd_edges(problem.network))
@@ -307,7 +315,7 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             if on_record is not None:
                 on_record(rec)
             if run.step_index % case.output.checkpoint_every == 0 or last:
-                _save(ckpt, run, case, rows, snapshots, setup_seconds, elapsed())
+                _save(ckpt, run, case, rows, snapshots, setup_seconds, elapsed(), clock)
             bar.update(run.step_index, rec.t, f"Sw={rec.row['sw']:.3f}")
             n_done += 1
             if stop_after is not None and n_done >= stop_after:
@@ -319,11 +327,11 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
         status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
         error = f"{type(exc).__name__}: {exc}"
         with contextlib.suppress(Exception):  # never hide the original error behind a write error
-            _write_summary(out, case, run, rows, setup_seconds, t_start, wall_before, status, error, [])
+            _write_summary(out, case, run, rows, setup_seconds, t_start, wall_before, status, error, [], clock)
         raise
     ts = _columns(rows)
     made = _figures(out, ts, snapshots, run, progress) if (figures and status == "completed") else []
-    summary = _write_summary(out, case, run, rows, setup_seconds, t_start, wall_before, status, error, made)
+    summary = _write_summary(out, case, run, rows, setup_seconds, t_start, wall_before, status, error, made, clock)
     return RunOutput(summary, out, ts)
 
 
@@ -336,14 +344,28 @@ def _snapshot(rec: ExchangeRecord) -> dict:
 _SNAP_KEYS = ("coords", "radius", "nw_saturation", "displacement", "von_mises", "force")
 
 
-def _save(path, run: CoupledRun, case: Case, rows, snapshots, setup_seconds, wall_seconds: float) -> None:
+@dataclasses.dataclass
+class _RunClock:
+    """CPU-time bookkeeping of :func:`run_case` (the wall time's is its ``t_start``/``wall_before``)."""
+
+    cpu_start: float  # process_time at the start of this process's run_case
+    cpu_before: float = 0.0  # CPU seconds of earlier processes of this run, up to their last checkpoint
+    setup_cpu: dict = dataclasses.field(default_factory=dict)  # CPU seconds of the set-up stages
+
+    def cpu_this_process(self) -> float:
+        return time.process_time() - self.cpu_start
+
+
+def _save(path, run: CoupledRun, case: Case, rows, snapshots, setup_seconds, wall_seconds: float,
+          clock: _RunClock) -> None:
     arrays, meta = run.checkpoint()
     for i, s in enumerate(snapshots):
         for k in _SNAP_KEYS:
             arrays[f"snap{i}_{k}"] = s[k]
     meta.update(case=case_to_dict(case), rows=rows, setup_seconds=setup_seconds,
                 snapshots=[{"t": s["t"], "step": s["step"]} for s in snapshots], version=__version__,
-                wall_seconds=wall_seconds)
+                wall_seconds=wall_seconds, setup_cpu_seconds=clock.setup_cpu,
+                process_cpu_seconds=clock.cpu_before + clock.cpu_this_process())
     results.save_checkpoint(path, arrays, meta)
 
 
@@ -356,12 +378,14 @@ def _columns(rows: list[dict]) -> dict:
 
 
 def _write_summary(out, case, run: CoupledRun | None, rows, setup_seconds, t_start, wall_before, status, error,
-                   figures) -> dict:
+                   figures, clock: _RunClock) -> dict:
     this_process = time.perf_counter() - t_start
     wall_seconds = wall_before + this_process
+    cpu_this = clock.cpu_this_process()
     if run is None:  # failed while setting up: what is known
         summary = {"status": status, "error": error, "case": case.name, "porefsi_version": __version__,
                    "wall_seconds": wall_seconds, "wall_seconds_this_process": this_process,
+                   "cpu_seconds": clock.cpu_before + cpu_this, "cpu_seconds_this_process": cpu_this,
                    "n_exchange_steps": 0, "figures": figures}
         results.write_json(out / "summary.json", summary)
         return json.loads(json.dumps(results.jsonable(summary)))
@@ -378,6 +402,9 @@ def _write_summary(out, case, run: CoupledRun | None, rows, setup_seconds, t_sta
         "wall_seconds": wall_seconds,
         "wall_seconds_this_process": this_process,
         "seconds_by_stage": {**setup_seconds, **run.seconds},
+        "cpu_seconds": clock.cpu_before + cpu_this,
+        "cpu_seconds_this_process": cpu_this,
+        "cpu_seconds_by_stage": {**clock.setup_cpu, **run.cpu_seconds},
         "n_pores": p.network.n_pores,
         "n_throats": p.network.n_throats,
         "n_nodes": p.mesh.n_nodes,

@@ -1,9 +1,13 @@
 """Helpers of the coupled loop (private).
 
-The solid model as the TDG stepper sees it, solver failures as typed errors, topology comparison.
+The solid model as the TDG stepper sees it, solver failures as typed errors, topology comparison,
+stage clocks (wall and CPU seconds).
 """
 
 from __future__ import annotations
+
+import contextlib
+import time
 
 import numpy as np
 
@@ -69,3 +73,24 @@ def _solver_failure(exc: BaseException, t: float, part: str = "solid") -> Conver
 def _same_topology(a: Network, b: Network) -> bool:
     return a.n_pores == b.n_pores and np.array_equal(a.throat_conns, b.throat_conns) and \
         np.array_equal(a.pore_faces, b.pore_faces)
+
+
+class StageClock:
+    """Wall (``time.perf_counter``) and CPU (``time.process_time``) seconds of named stages.
+
+    ``with clock("fluid"): ...`` adds the block's wall seconds to ``clock.wall["fluid"]`` and its
+    CPU seconds (this process, all threads) to ``clock.cpu["fluid"]``; the two dicts may be shared
+    with the caller (they are updated in place).
+    """
+
+    def __init__(self, wall: dict | None = None, cpu: dict | None = None):
+        self.wall = {} if wall is None else wall
+        self.cpu = {} if cpu is None else cpu
+
+    @contextlib.contextmanager
+    def __call__(self, stage: str):
+        """Time the block as ``stage`` (accumulated: the same stage may be timed several times)."""
+        w0, c0 = time.perf_counter(), time.process_time()
+        yield
+        self.wall[stage] = self.wall.get(stage, 0.0) + time.perf_counter() - w0
+        self.cpu[stage] = self.cpu.get(stage, 0.0) + time.process_time() - c0

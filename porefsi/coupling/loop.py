@@ -26,7 +26,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from porefsi.coupling._loop_support import _SOLVER_FAILURES, _same_topology, _solver_failure, _TangentLog
+from porefsi.coupling._loop_support import _SOLVER_FAILURES, StageClock, _same_topology, _solver_failure, _TangentLog
 from porefsi.coupling.interface import Interface
 from porefsi.coupling.problem import CoupledProblem, build_interface
 from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change, update_nodes
@@ -103,7 +103,7 @@ class ExchangeRecord:
     row : dict
         The time-series row (:data:`TIMESERIES_COLUMNS`).
     seconds : dict
-        Wall time of the step by stage: fluid, interface, solid, update, outputs, s.
+        Wall time of the step by stage: fluid, interface, solid, update, stress, permeability, s.
     residual_history : tuple of float
         Fluid-solid sub-iterations: relative displacement change ``|r_k| / |U|`` of each (empty
         without sub-iterations).
@@ -111,6 +111,9 @@ class ExchangeRecord:
         The relaxation factor ``omega_k`` used after each sub-iteration (Aitken or 1).
     precoupling_history : tuple of float
         Pre-coupling re-extractions: ``E_a`` (paper eq. 3.3) after each (empty unless re-extracting).
+    cpu_seconds : dict
+        CPU time (``time.process_time``: this process, all threads) of the step by the stages of
+        ``seconds``, s.
     """
 
     step: int
@@ -125,6 +128,7 @@ class ExchangeRecord:
     residual_history: tuple = ()
     relaxation_history: tuple = ()
     precoupling_history: tuple = ()
+    cpu_seconds: dict = dataclasses.field(default_factory=dict)
 
 
 def _pressure(state: FlowState) -> np.ndarray:
@@ -146,12 +150,16 @@ class CoupledRun:
 
     Attributes
     ----------
+    seconds, cpu_seconds : dict
+        Wall time (``time.perf_counter``) and CPU time (``time.process_time``: this process, all
+        threads) of the steps so far by stage (fluid, interface, solid, update, stress,
+        permeability), s; checkpointed, so cumulative over a resumed run's processes.
     n_extractions, n_extractions_reused : int
         Re-extractions computed, and served from the digest cache.
-    update_seconds : dict
-        The re-extraction part of the ``update`` stage: ``voxelise`` (the deformed solid on the
-        voxel grid), ``extract`` (computed extractions), ``interface_rebuild`` (after a topology
-        change), s.
+    update_seconds, update_cpu_seconds : dict
+        The re-extraction part of the ``update`` stage, wall and CPU: ``voxelise`` (the deformed
+        solid on the voxel grid), ``extract`` (computed extractions), ``interface_rebuild`` (after
+        a topology change), s.
     """
 
     def __init__(self, problem: CoupledProblem, *, reuse_extractions: bool = True):
@@ -187,7 +195,10 @@ class CoupledRun:
         self.n_extractions = 0  # re-extractions actually computed (not served from the above)
         self.n_extractions_reused = 0  # re-extractions served from the digest cache
         self.seconds = dict.fromkeys(("fluid", "interface", "solid", "update", "stress", "permeability"), 0.0)
+        self.cpu_seconds = dict.fromkeys(self.seconds, 0.0)
         self.update_seconds = dict.fromkeys(("voxelise", "extract", "interface_rebuild"), 0.0)
+        self.update_cpu_seconds = dict.fromkeys(self.update_seconds, 0.0)
+        self._update_clock = StageClock(self.update_seconds, self.update_cpu_seconds)
         self.precoupling_history: list[float] = []
 
     # ---- solid --------------------------------------------------------------------------
@@ -275,9 +286,8 @@ class CoupledRun:
                                                   self.interface.pore_nodes, p.mesh.points, p.node_spacing)
             return geometric_update(p.network, self._update_nodes, p.mesh.points, U), self.interface, \
                 self.labels, None
-        tt = time.perf_counter()
-        img = deformed_image(p.image, p.mesh.points, U, p.node_spacing)
-        self.update_seconds["voxelise"] += time.perf_counter() - tt
+        with self._update_clock("voxelise"):
+            img = deformed_image(p.image, p.mesh.points, U, p.node_spacing)
         # The extraction is deterministic: the same voxel image gives the same network bit for bit,
         # so an image seen before (at the paper's loads: always the reference image, displacements
         # being ~1e-6 voxel) reuses its extraction instead of repeating it.
@@ -286,9 +296,8 @@ class CoupledRun:
         if ex is not None:
             self.n_extractions_reused += 1
         else:
-            tt = time.perf_counter()
-            ex = extract_network(percolating_cluster(img, p.case.image.axis).image)
-            self.update_seconds["extract"] += time.perf_counter() - tt
+            with self._update_clock("extract"):
+                ex = extract_network(percolating_cluster(img, p.case.image.axis).image)
             self.n_extractions += 1
             if self.reuse_extractions:
                 if len(self._extractions) >= 4:
@@ -297,9 +306,8 @@ class CoupledRun:
         new = ex.network
         if _same_topology(new, self.network):
             return new, self.interface, self.labels, None
-        tt = time.perf_counter()
-        itf = build_interface(p.case, new, ex.labels, p.mesh, p.image.voxel_size, p.image.origin)
-        self.update_seconds["interface_rebuild"] += time.perf_counter() - tt
+        with self._update_clock("interface_rebuild"):
+            itf = build_interface(p.case, new, ex.labels, p.mesh, p.image.voxel_size, p.image.origin)
         return new, itf, ex.labels, None
 
     @staticmethod
@@ -333,7 +341,7 @@ class CoupledRun:
     def initial_record(self) -> ExchangeRecord:
         """The state at t = 0 (before injection), as a record."""
         U = self.model.expand(self.u, 0.0)
-        return self._record(self.sim.state, U, np.zeros_like(U), {}, 0, 0.0, None)
+        return self._record(self.sim.state, U, np.zeros_like(U), StageClock(), 0, 0.0, None)
 
     def steps(self) -> Iterator[ExchangeRecord]:
         """Advance exchange step by exchange step to ``t_end``, yielding a record after each."""
@@ -343,7 +351,8 @@ class CoupledRun:
             t0 = self.t
             t1 = min(self.t_end, (self.step_index + 1) * self.dt)
             dt = t1 - t0
-            secs = dict.fromkeys(("fluid", "interface", "solid", "update"), 0.0)
+            stages = ("fluid", "interface", "solid", "update")
+            clock = StageClock(dict.fromkeys(stages, 0.0), dict.fromkeys(stages, 0.0))
             # the start-of-step load is the one the solid carried at t0: the pressures of the
             # network and interface of t0, even when a re-extraction below changes the topology
             F0 = self.interface.nodal_forces(_pressure(self.sim.state))
@@ -361,24 +370,21 @@ class CoupledRun:
             n_iter = 0
             while True:
                 n_iter += 1
-                tt = time.perf_counter()
-                sim = sim_start if n_max == 1 else sim_start.with_network(self.network)
-                sim = self._carry(sim, net_k, self.labels, lab_k)
-                lab_sim = lab_k
-                later = sorted((set(self.load_times(t0, dt)) | {t1}) - {t0})
-                try:
-                    pressures = {s: _pressure(sim.advance_to(s)) for s in later}
-                except _SOLVER_FAILURES as exc:
-                    raise _solver_failure(exc, t0, "fluid") from exc
-                secs["fluid"] += time.perf_counter() - tt
-                tt = time.perf_counter()
-                forces = {t0: F0} | {s: itf_k.nodal_forces(P) for s, P in pressures.items()}
-                F1 = forces[t1]
-                secs["interface"] += time.perf_counter() - tt
-                tt = time.perf_counter()
-                u1, v1 = self._solid_step(self.u, self.v, t0, dt, forces)
-                U1 = self.model.expand(u1, t1)
-                secs["solid"] += time.perf_counter() - tt
+                with clock("fluid"):
+                    sim = sim_start if n_max == 1 else sim_start.with_network(self.network)
+                    sim = self._carry(sim, net_k, self.labels, lab_k)
+                    lab_sim = lab_k
+                    later = sorted((set(self.load_times(t0, dt)) | {t1}) - {t0})
+                    try:
+                        pressures = {s: _pressure(sim.advance_to(s)) for s in later}
+                    except _SOLVER_FAILURES as exc:
+                        raise _solver_failure(exc, t0, "fluid") from exc
+                with clock("interface"):
+                    forces = {t0: F0} | {s: itf_k.nodal_forces(P) for s, P in pressures.items()}
+                    F1 = forces[t1]
+                with clock("solid"):
+                    u1, v1 = self._solid_step(self.u, self.v, t0, dt, forces)
+                    U1 = self.model.expand(u1, t1)
                 if cc.subiterations > 1:
                     base = U_start if U_iter is None else U_iter
                     r = U1 - base
@@ -392,12 +398,11 @@ class CoupledRun:
                     U_use = U_iter
                 else:
                     U_use = U1
-                tt = time.perf_counter()
-                net_prev = net_k
-                net_k, itf_k, lab_k, _ = self._update_network(U_use)
-                if reextract:  # the paper's pre-coupling measure between successive re-extractions (eq. 3.3)
-                    ea_hist.append(mean_size_change(net_prev, net_k))
-                secs["update"] += time.perf_counter() - tt
+                with clock("update"):
+                    net_prev = net_k
+                    net_k, itf_k, lab_k, _ = self._update_network(U_use)
+                    if reextract:  # the paper's pre-coupling measure between successive re-extractions (eq. 3.3)
+                        ea_hist.append(mean_size_change(net_prev, net_k))
                 disp_ok = cc.subiterations == 1 or res_hist[-1] < cc.subiteration_tol
                 ea_ok = not reextract or ea_hist[-1] <= nc.precoupling_tol
                 if disp_ok and ea_ok:
@@ -411,28 +416,25 @@ class CoupledRun:
                         "relaxation = 'aitken', or a smaller exchange_dt", hist)
             ea = ea_hist[-1] if ea_hist else None
             self.u, self.v, self.t = u1, v1, t1
-            tt = time.perf_counter()
-            self.sim = self._carry(sim, net_k, lab_sim, lab_k)
-            self.network, self.interface, self.labels = net_k, itf_k, lab_k
-            secs["update"] += time.perf_counter() - tt
+            with clock("update"):
+                self.sim = self._carry(sim, net_k, lab_sim, lab_k)
+                self.network, self.interface, self.labels = net_k, itf_k, lab_k
             self.step_index += 1
-            rec = self._record(self.sim.state, U1, F1, secs, self.step_index, time.perf_counter() - t_wall,
+            rec = self._record(self.sim.state, U1, F1, clock, self.step_index, time.perf_counter() - t_wall,
                                (n_iter, res_hist[-1] if res_hist else 0.0, ea, len(ea_hist)))
             rec = dataclasses.replace(rec, residual_history=tuple(res_hist), relaxation_history=tuple(omega_hist),
                                       precoupling_history=tuple(ea_hist))
-            for key, val in rec.seconds.items():
-                self.seconds[key] = self.seconds.get(key, 0.0) + val
+            for total, part in ((self.seconds, rec.seconds), (self.cpu_seconds, rec.cpu_seconds)):
+                for key, val in part.items():
+                    total[key] = total.get(key, 0.0) + val
             yield rec
 
-    def _record(self, state: FlowState, U, F, secs, step, wall, sub) -> ExchangeRecord:
-        secs = dict(secs)
-        tt = time.perf_counter()
-        sigma = element_cauchy(self.model, self.u, self.t)
-        vm = nodal_average(self.model.mesh, von_mises(sigma))
-        secs["stress"] = time.perf_counter() - tt
-        tt = time.perf_counter()
-        k = absolute_permeability(self.network, self.problem.case.image.axis).k_m2
-        secs["permeability"] = time.perf_counter() - tt
+    def _record(self, state: FlowState, U, F, clock: StageClock, step, wall, sub) -> ExchangeRecord:
+        with clock("stress"):
+            sigma = element_cauchy(self.model, self.u, self.t)
+            vm = nodal_average(self.model.mesh, von_mises(sigma))
+        with clock("permeability"):
+            k = absolute_permeability(self.network, self.problem.case.image.axis).k_m2
         P = _pressure(state)
         n_sub, res, ea, n_pre = sub if sub else (0, 0.0, None, 0)
         c = self.sim.counters
@@ -450,7 +452,8 @@ class CoupledRun:
             "coupling_residual": res, "precoupling_iterations": n_pre,
             "precoupling_Ea": float("nan") if ea is None else ea, "wall_s": wall,
         }
-        return ExchangeRecord(step, self.t, state, self.network, U, vm, F, row, secs)
+        return ExchangeRecord(step, self.t, state, self.network, U, vm, F, row, dict(clock.wall),
+                              cpu_seconds=dict(clock.cpu))
 
     # ---- checkpoints --------------------------------------------------------------------
     def checkpoint(self) -> tuple[dict, dict]:
@@ -461,9 +464,9 @@ class CoupledRun:
             "network": np.frombuffer(pickle.dumps(self.network, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
             "interface": np.frombuffer(pickle.dumps(self.interface, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
         }
-        meta = {"step_index": self.step_index, "t": self.t, "seconds": self.seconds,
+        meta = {"step_index": self.step_index, "t": self.t, "seconds": self.seconds, "cpu_seconds": self.cpu_seconds,
                 "n_extractions": self.n_extractions, "n_extractions_reused": self.n_extractions_reused,
-                "update_seconds": self.update_seconds}
+                "update_seconds": self.update_seconds, "update_cpu_seconds": self.update_cpu_seconds}
         # where the reused factorisations were built (restore rebuilds the same matrices)
         if self._static_lu_at is not None:
             arrays["static_lu_u"] = self._static_lu_at[0]
@@ -493,9 +496,11 @@ class CoupledRun:
         run.step_index = int(meta["step_index"])
         run.t = float(meta["t"])
         run.seconds = dict(meta["seconds"])
+        run.cpu_seconds.update(meta.get("cpu_seconds", {}))
         run.n_extractions = int(meta.get("n_extractions", 0))
         run.n_extractions_reused = int(meta.get("n_extractions_reused", 0))
         run.update_seconds.update(meta.get("update_seconds", {}))
+        run.update_cpu_seconds.update(meta.get("update_cpu_seconds", {}))
         if "static_lu_u" in arrays:
             run._static_lu_at = (np.array(arrays["static_lu_u"], dtype=float), float(meta["static_lu_t"]))
         if "tdg_tangent_u" in arrays:  # the stepper's first tangent is the checkpointed run's

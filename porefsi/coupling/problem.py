@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
-import time
 from pathlib import Path
 
 import numpy as np
 
 from porefsi.case.config import Case
+from porefsi.coupling._loop_support import StageClock
 from porefsi.coupling.interface import (
     Interface,
     boundary_facet_normals,
@@ -53,6 +53,9 @@ class CoupledProblem:
     seconds : dict
         Wall time of each set-up stage, s (``image``, ``extraction``, ``mesh``, ``interface_build``;
         distinct from the per-step stage names of :class:`~porefsi.coupling.loop.CoupledRun`).
+    cpu_seconds : dict
+        CPU time (``time.process_time``: this process, all threads) of the same stages, s
+        (empty when the problem was assembled by hand).
     """
 
     case: Case
@@ -63,6 +66,7 @@ class CoupledProblem:
     model: SolidModel
     fluids: Fluids
     seconds: dict
+    cpu_seconds: dict = dataclasses.field(default_factory=dict)
 
     @property
     def network(self) -> Network:
@@ -143,29 +147,25 @@ def throat_cylinders(net: Network):
 
 def build_problem(case: Case) -> CoupledProblem:
     """Build the coupled problem of ``case`` (image, network, mesh, interface, solid model)."""
-    secs: dict[str, float] = {}
-    t = time.perf_counter()
-    img = load_case_image(case)
-    secs["image"] = time.perf_counter() - t
+    clock = StageClock()
+    with clock("image"):
+        img = load_case_image(case)
 
-    t = time.perf_counter()
-    perc = percolating_cluster(img, case.image.axis)
-    ex = extract_network(perc.image)
-    secs["extraction"] = time.perf_counter() - t
+    with clock("extraction"):
+        perc = percolating_cluster(img, case.image.axis)
+        ex = extract_network(perc.image)
 
-    t = time.perf_counter()
-    sc = case.solid
-    mres = mesh_solid(img, coarsen=sc.coarsen, support_axis=sc.load_axis)
-    material = make_material(sc.material, E=sc.E, nu=sc.nu, density=sc.density)
-    ax = axis_index(sc.load_axis)
-    if sc.strain_rate != 0:
-        check_load_path(mres.mesh, ax)  # a load frame needs solid joining its two faces
-    length = img.extent[ax]
-    bcs = uniaxial_bcs(ax, rate=-sc.strain_rate * length)
-    model = SolidModel(mres.mesh, material, bcs, order=sc.order, linear_solver=sc.linear_solver)
-    secs["mesh"] = time.perf_counter() - t
+    with clock("mesh"):
+        sc = case.solid
+        mres = mesh_solid(img, coarsen=sc.coarsen, support_axis=sc.load_axis)
+        material = make_material(sc.material, E=sc.E, nu=sc.nu, density=sc.density)
+        ax = axis_index(sc.load_axis)
+        if sc.strain_rate != 0:
+            check_load_path(mres.mesh, ax)  # a load frame needs solid joining its two faces
+        length = img.extent[ax]
+        bcs = uniaxial_bcs(ax, rate=-sc.strain_rate * length)
+        model = SolidModel(mres.mesh, material, bcs, order=sc.order, linear_solver=sc.linear_solver)
 
-    t = time.perf_counter()
-    itf = build_interface(case, ex.network, ex.labels, mres.mesh, img.voxel_size, img.origin)
-    secs["interface_build"] = time.perf_counter() - t
-    return CoupledProblem(case, img, ex, mres, itf, model, fluids_from_case(case), secs)
+    with clock("interface_build"):
+        itf = build_interface(case, ex.network, ex.labels, mres.mesh, img.voxel_size, img.origin)
+    return CoupledProblem(case, img, ex, mres, itf, model, fluids_from_case(case), clock.wall, clock.cpu)
