@@ -191,13 +191,21 @@ def _check_verification(saved, out):
 
 def _check_cost(saved, out):
     runs = saved["runs"]
-    assert len(runs) == 5
+    assert len(runs) == 6
     assert all(r["cpu_s"] > 0 and r["wall_s"] > 0 for r in runs.values())
     # at rock stiffness the solid does not change the drainage: the same Sw in every row
     sws = [r["final_sw"] for r in runs.values()]
     assert max(sws) - min(sws) < 1e-6 and 0.0 < sws[0] < 1.0
     assert all(r["max_displacement_m"] > 0 for name, r in runs.items() if name != "fluid only")
-    assert saved["table_markdown"].count("\n| ") >= 5
+    assert saved["table_markdown"].count("\n| ") >= 6
+    # CPU time by stage: every run's stages are >= 0 and sum to no more than its CPU total
+    for name, r in runs.items():
+        assert all(v >= 0 for v in r["stages_cpu_s"].values()), name
+        assert sum(r["stages_cpu_s"].values()) <= r["cpu_s"], name
+    # the extraction cache serves every re-extraction; without it each one is computed
+    cached, fresh = runs["coupled (re-extraction)"]["reextraction"], runs[
+        "coupled (re-extraction, extraction cache off)"]["reextraction"]
+    assert cached["n_computed"] == 0 < cached["n_reused"] == fresh["n_computed"] and fresh["n_reused"] == 0
 
 
 def _check_speed_accuracy(saved, out):

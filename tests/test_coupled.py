@@ -135,6 +135,7 @@ def test_cpu_seconds_by_stage():
     assert stages["solid"] > 0 and stages["mesh"] > 0
     assert sum(stages.values()) <= s["cpu_seconds_this_process"] <= cpu
     assert s["cpu_seconds"] == s["cpu_seconds_this_process"]
+    assert s["reextraction"] is None  # geometric update
 
 
 def test_resumed_cpu_seconds_are_cumulative(tmp_path):
@@ -660,6 +661,13 @@ def test_extraction_cache_can_be_disabled():
     assert rc.update_seconds["voxelise"] > 0 and rf.update_seconds["voxelise"] > 0
     assert rc.update_cpu_seconds["extract"] == 0.0 < rf.update_cpu_seconds["extract"]
     assert sum(rf.update_cpu_seconds.values()) <= rf.cpu_seconds["update"]
+    # the same switch through run_case, and the counters in summary.json
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        s = run_case(case, d, progress=False, reuse_extractions=False).summary
+    assert (s["reextraction"]["n_computed"], s["reextraction"]["n_reused"]) == (n, 0)
+    assert s["reextraction"]["cpu_seconds"]["extract"] > 0 and s["final_sw"] == cached[-1]["sw"]
     # A freshly extracted (equal) network is a new object, onto which the drainage is carried with
     # its solver state reset: one more pressure solve, every result the same.
     skip = ("wall_s", "n_solves")

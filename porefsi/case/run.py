@@ -205,7 +205,7 @@ def _figures(out: Path, ts: dict, snapshots: list, run: CoupledRun, progress: bo
 
 def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False, progress: bool | None = None,
              figures: bool | None = None, on_record: Callable[[ExchangeRecord], None] | None = None,
-             stop_after: int | None = None) -> RunOutput:
+             stop_after: int | None = None, reuse_extractions: bool = True) -> RunOutput:
     """Run ``case`` and write its results to ``out`` (default ``case.output.dir``).
 
     Parameters
@@ -223,6 +223,10 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
         Called with every :class:`~porefsi.coupling.loop.ExchangeRecord` (e.g. by case scripts).
     stop_after : int, optional
         Stop after this many exchange steps of this call (for tests of interrupted runs).
+    reuse_extractions : bool, default True
+        Re-extraction mode: serve the extraction of a voxel image seen before from a digest cache
+        (:class:`~porefsi.coupling.loop.CoupledRun`); False computes every re-extraction, the
+        paper's cost, with the same results (for cost studies).
 
     Raises
     ------
@@ -278,7 +282,7 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     try:
         problem = build_problem(case)
         if resume:
-            run = CoupledRun.restore(problem, arrays, meta)
+            run = CoupledRun.restore(problem, arrays, meta, reuse_extractions=reuse_extractions)
             # JSON keeps NaN as null: give the restored rows their NaN back
             rows = [{k: float("nan") if v is None else v for k, v in r.items()} for r in meta["rows"]]
             snapshots = _load_snapshots(arrays, meta)
@@ -288,7 +292,7 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             setup_seconds = meta["setup_seconds"]
             clock.setup_cpu = dict(meta.get("setup_cpu_seconds", {}))
         else:
-            run = CoupledRun(problem)
+            run = CoupledRun(problem, reuse_extractions=reuse_extractions)
             rows, snapshots = [], []
             series = {k: results.PvdSeries(out / f"{k}.pvd") for k in ("solid", "network")}
             setup_seconds = dict(problem.seconds)
@@ -421,6 +425,10 @@ def _write_summary(out, case, run: CoupledRun | None, rows, setup_seconds, t_sta
         "mass_balance_error": mass,
         "load_balance_error": load,
         "interface_unloaded_pores": run.interface.n_unloaded,
+        "reextraction": None if case.network.update != "reextract" else {
+            "n_computed": run.n_extractions, "n_reused": run.n_extractions_reused,
+            "reuse_extractions": run.reuse_extractions,
+            "seconds": dict(run.update_seconds), "cpu_seconds": dict(run.update_cpu_seconds)},
         "figures": figures,
     }
     results.write_json(out / "summary.json", summary)
