@@ -40,6 +40,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
+from porefsi._version import __version__  # noqa: E402
 from porefsi.case.config import case_to_toml, load_case, smoke_case  # noqa: E402
 from porefsi.coupling.loop import CoupledRun  # noqa: E402
 from porefsi.coupling.problem import build_problem  # noqa: E402
@@ -183,9 +184,40 @@ def build_reference(base, smoke: bool, sample_times) -> dict:
     idx = eval_points(res)
     ref = {"points": res["points"][idx], "times": np.asarray(sample_times, float),
            "u": np.stack([at_time(res, t)[idx] for t in sample_times]), "case_toml": case_to_toml(case),
+           "porefsi_version": __version__, "commit": _commit(),
+           "built_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
            "cpu_s": res["cpu_s"], "wall_s": res["wall_s"], "n_nodes": res["n_nodes"], "n_tets": res["n_tets"],
            **{k: v for k, v in final_scalars(res).items()}}
     return ref
+
+
+def _commit() -> str | None:
+    """The checkout's commit (with ``+dirty`` for uncommitted changes), or None outside git."""
+    import subprocess
+
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True,
+                              check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "porefsi"], cwd=HERE.parent.parent,
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return head + ("+dirty" if dirty else "")
+
+
+def reference_stale(ref: dict, base, smoke: bool) -> str | None:
+    """Why a cached reference no longer fits the study (None: it does).
+
+    It must have been built from the reference case the current code makes of ``case.toml`` (the
+    whole case file, every key, as ``case_to_toml`` writes it: a new key or a changed default
+    makes it stale). The commit it was built at is recorded and printed, not compared: most
+    commits do not touch the solution, so a code change that does must be judged (and the
+    reference rebuilt with ``--rebuild-reference``).
+    """
+    want = case_to_toml(base.replace(name=f"{base.name}-reference", **reference_overrides(smoke)))
+    if ref.get("case_toml") != want:
+        return "its case differs from the reference case of the current case.toml and code"
+    return None
 
 
 def check_reference(base, ref: dict) -> dict:
@@ -413,7 +445,13 @@ def main(argv=None) -> int:
     sample_times = list(np.arange(SAMPLE_DT, base.drainage.t_end + 1e-9, SAMPLE_DT))
     run_variant(smoke_case(base).replace(drainage={"t_end": 1.0}))  # warm-up: numba cache loads, imports
     ref_path = out / "reference" / "reference.npz" if args.smoke else REF_FILE
-    if args.smoke or args.rebuild_reference or not ref_path.exists():
+    stale = None
+    if not (args.smoke or args.rebuild_reference) and ref_path.exists():
+        cached = load_reference(ref_path)
+        stale = reference_stale(cached, base, args.smoke)
+        print(f"cached reference: built {cached.get('built_utc', 'before build dates were recorded')} at commit "
+              f"{cached.get('commit', 'not recorded')}; {'stale: ' + stale if stale else 'case matches'}", flush=True)
+    if args.smoke or args.rebuild_reference or stale or not ref_path.exists():
         print("building the reference ...", flush=True)
         ref = build_reference(base, args.smoke, sample_times)
         if not args.smoke:

@@ -144,7 +144,7 @@ class CouplingConfig:
 
     exchange_dt: float = _f(1.0, "exchange (coupling) time step", lo=0.0, lo_open=True, unit="s")
     integrator: str = _f("static", "solid time integrator: static (default; at ωΔt ~ 1e7 it matches 2-pass TDG to "
-                         "1e-15 for 20 % less CPU, docs/speed_accuracy.md) or tdg (the paper's, with inertia)",
+                         "1e-15 for 12-20 % less CPU, docs/speed_accuracy.md) or tdg (the paper's, with inertia)",
                          choices=("tdg", "static"))
     tdg_iterations: int = _f(2, "Nørsett predictor-corrector passes (2 = third order)", choices=(1, 2))
     tdg_load_rule: str = _f("right", "TDG load samples: right = t+Δt/3, t+Δt (third order for the quasi-static "
