@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -85,6 +86,14 @@ def _compose(paths, titles, out: Path, *, nrow: int, suptitle: str) -> Path:
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def _loadavg() -> list | None:
+    """1, 5 and 15 min load averages (the machine is shared), or None where unavailable."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        return None
 
 
 def main(argv=None) -> dict:
@@ -188,6 +197,8 @@ def main(argv=None) -> dict:
         "wall_seconds_run": run_seconds,
         "cpu_seconds_run": run_cpu,
         "seconds_by_stage": s["seconds_by_stage"],
+        "cpu_seconds_by_stage": s["cpu_seconds_by_stage"],
+        "loadavg": _loadavg(),
         "paper": PAPER,
         "figures": [str(p.relative_to(out)) for p in made],
     }
