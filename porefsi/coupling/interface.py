@@ -44,7 +44,9 @@ class Interface:
     Attributes
     ----------
     operator : scipy.sparse.csr_matrix, shape (3 Nn, Np)
-        ``nodal_forces(P).ravel() == operator @ P``; units m² (force per unit pressure).
+        ``nodal_forces(P).ravel() == operator @ P``; units m² (force per unit pressure). ``Nn``
+        is the number of mesh vertices, or of P2 Lagrange nodes (vertices, then edge midpoints)
+        for a P2-consistent traction operator.
     method : str
         ``"hull"`` or ``"traction"``.
     wall_area : ndarray, shape (Np,)
@@ -74,6 +76,10 @@ class Interface:
         The two pores of each column of :attr:`throat_operator`.
     throat_area : ndarray, shape (Nt_loaded,), or None
         Lateral area ``2 pi r L`` of each throat cylinder, m².
+    vertex_operator : scipy.sparse.csr_matrix, shape (3 Nv, Np), or None
+        For an operator on P2 Lagrange nodes: the P1 split of the same load on the mesh
+        vertices (same resultant per pore), for outputs drawn on the vertices
+        (:meth:`vertex_forces`); None when :attr:`operator` already acts on the vertices.
     """
 
     operator: sp.csr_matrix
@@ -87,6 +93,7 @@ class Interface:
     throat_operator: sp.csr_matrix | None = None
     throat_pores: np.ndarray | None = None
     throat_area: np.ndarray | None = None
+    vertex_operator: sp.csr_matrix | None = None
 
     def __post_init__(self):
         if self.handed_area is None:
@@ -108,6 +115,19 @@ class Interface:
         if p.shape != (self.n_pores,):
             raise InputError(f"pressure must have shape ({self.n_pores},), got {p.shape}")
         return (self.operator @ p).reshape(-1, 3)
+
+    def vertex_forces(self, pressure) -> np.ndarray:
+        """Nodal forces on the mesh vertices (Nv, 3), N, for outputs.
+
+        :meth:`nodal_forces`, or for a P2 operator the P1 split of the same load
+        (:attr:`vertex_operator`).
+        """
+        if self.vertex_operator is None:
+            return self.nodal_forces(pressure)
+        p = np.asarray(pressure, dtype=float)
+        if p.shape != (self.n_pores,):
+            raise InputError(f"pressure must have shape ({self.n_pores},), got {p.shape}")
+        return (self.vertex_operator @ p).reshape(-1, 3)
 
     def load_balance_error(self, pressure) -> float:
         r"""Relative mismatch between the load handed over and the load the pores carry.

@@ -307,7 +307,7 @@ class CoupledRun:
         if _same_topology(new, self.network):
             return new, self.interface, self.labels, None
         with self._update_clock("interface_rebuild"):
-            itf = build_interface(p.case, new, ex.labels, p.mesh, p.image.voxel_size, p.image.origin)
+            itf = build_interface(p.case, new, ex.labels, p.mesh, p.image.voxel_size, p.image.origin, p.model)
         return new, itf, ex.labels, None
 
     @staticmethod
@@ -381,7 +381,7 @@ class CoupledRun:
                         raise _solver_failure(exc, t0, "fluid") from exc
                 with clock("interface"):
                     forces = {t0: F0} | {s: itf_k.nodal_forces(P) for s, P in pressures.items()}
-                    F1 = forces[t1]
+                    F1 = itf_k.vertex_forces(pressures[t1])  # outputs: on the vertices (P1 split for P2)
                 with clock("solid"):
                     u1, v1 = self._solid_step(self.u, self.v, t0, dt, forces)
                     U1 = self.model.expand(u1, t1)

@@ -24,6 +24,7 @@ from porefsi.image.voxel_image import VoxelImage, axis_index
 from porefsi.network.extract import Extraction, extract_network
 from porefsi.network.network import Network
 from porefsi.solid.bc import check_load_path, uniaxial_bcs
+from porefsi.solid.forms import edge_midpoint_nodes
 from porefsi.solid.materials import make_material
 from porefsi.solid.mesh import MeshResult, SolidMesh, mesh_solid
 from porefsi.solid.model import SolidModel
@@ -113,8 +114,13 @@ def fluids_from_case(case: Case) -> Fluids:
 
 
 def build_interface(case: Case, network: Network, labels: np.ndarray, mesh: SolidMesh,
-                    voxel_size: float, origin) -> Interface:
-    """The case's pressure -> force operator on the pore-wall surface of ``mesh``."""
+                    voxel_size: float, origin, model: SolidModel | None = None) -> Interface:
+    """The case's pressure -> force operator on the pore-wall surface of ``mesh``.
+
+    With a P2 ``model`` the traction operator integrates the wall traction against the P2
+    basis (forces on the edge-midpoint nodes); the hull hands its forces to the vertices in
+    every case (the paper's point loads).
+    """
     ic = case.interface
     if ic.method == "hull":
         wall = np.zeros(mesh.n_nodes, bool)
@@ -127,7 +133,10 @@ def build_interface(case: Case, network: Network, labels: np.ndarray, mesh: Soli
     normals, _ = boundary_facet_normals(mesh.points, mesh.tets, facets)
     owner = facet_pores_from_labels(mesh.points, facets, normals, labels, voxel_size, origin,
                                     max_steps=max(4, 2 * case.solid.coarsen))
-    return traction_interface(mesh.points, mesh.tets, facets, owner, network.n_pores)
+    p2 = None
+    if model is not None and model.order == 2:
+        p2 = (lambda a, b: edge_midpoint_nodes(model.feb, a, b), model.n_full // 3)
+    return traction_interface(mesh.points, mesh.tets, facets, owner, network.n_pores, p2_nodes=p2)
 
 
 def throat_cylinders(net: Network):
@@ -167,5 +176,5 @@ def build_problem(case: Case) -> CoupledProblem:
         model = SolidModel(mres.mesh, material, bcs, order=sc.order, linear_solver=sc.linear_solver)
 
     with clock("interface_build"):
-        itf = build_interface(case, ex.network, ex.labels, mres.mesh, img.voxel_size, img.origin)
+        itf = build_interface(case, ex.network, ex.labels, mres.mesh, img.voxel_size, img.origin, model)
     return CoupledProblem(case, img, ex, mres, itf, model, fluids_from_case(case), clock.wall, clock.cpu)

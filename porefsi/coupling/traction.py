@@ -93,11 +93,14 @@ def facet_pores_from_labels(points, facets, normals, labels, voxel_size, origin=
     return out
 
 
-def traction_interface(points, tets, facets, facet_pore, n_pores: int) -> Interface:
+def traction_interface(points, tets, facets, facet_pore, n_pores: int, *, p2_nodes=None) -> Interface:
     """Consistent traction transfer: pore pressure acts as ``-P n`` on its wall facets.
 
-    Each boundary facet ``e`` facing pore ``i = facet_pore[e]`` (>= 0) adds ``-P_i A_e n_e / 3``
-    to each of its three nodes (exact P1 integration of a constant traction).
+    Each boundary facet ``e`` facing pore ``i = facet_pore[e]`` (>= 0) carries the force
+    ``-P_i A_e n_e``, split over the facet's nodes as the exact integral of a constant traction
+    against the basis: P1 (default), a third to each vertex; P2 (``p2_nodes`` given), a third to
+    each edge-midpoint node and nothing to the vertices (a P2 vertex function integrates to zero
+    over a flat triangle, so vertex forces would be point loads the P2 field resolves).
 
     Parameters
     ----------
@@ -108,6 +111,16 @@ def traction_interface(points, tets, facets, facet_pore, n_pores: int) -> Interf
     facet_pore : ndarray of int, shape (Nf,)
         Pore each facet faces, -1 for none (see :func:`facet_pores_from_labels`).
     n_pores : int
+    p2_nodes : tuple (callable, int), optional
+        ``(midpoint_nodes, n_lagrange)`` of a P2 basis: ``midpoint_nodes(a, b)`` gives the
+        Lagrange node of each edge (e.g. :func:`porefsi.solid.forms.edge_midpoint_nodes`),
+        ``n_lagrange`` the number of Lagrange nodes. The operator then acts on all Lagrange
+        nodes, and :attr:`~porefsi.coupling.interface.Interface.vertex_operator` keeps the P1
+        vertex split for outputs.
+
+    Returns
+    -------
+    Interface
     """
     from porefsi.coupling.interface import Interface, _assemble  # interface re-exports this module
 
@@ -121,17 +134,28 @@ def traction_interface(points, tets, facets, facet_pore, n_pores: int) -> Interf
     use = fp >= 0
     nrm, area = boundary_facet_normals(points, tets, f[use])
     fu, pu = f[use], fp[use]
-    rows, cols, vals = [], [], []
-    for a in range(3):
-        for k in range(3):
-            rows.append(3 * fu[:, a] + k)
-            cols.append(pu)
-            vals.append(-area * nrm[:, k] / 3.0)
     n_nodes = np.asarray(points).shape[0]
-    T = _assemble(rows, cols, vals, (3 * n_nodes, n_pores))
+
+    def split(node_sets, n_rows):
+        rows, cols, vals = [], [], []
+        for m in node_sets:
+            for k in range(3):
+                rows.append(3 * m + k)
+                cols.append(pu)
+                vals.append(-area * nrm[:, k] / 3.0)
+        return _assemble(rows, cols, vals, (3 * n_rows, n_pores))
+
+    T1 = split([fu[:, a] for a in range(3)], n_nodes)
+    if p2_nodes is None:
+        T, vertex_T = T1, None
+    else:
+        midpoint_nodes, n_lagrange = p2_nodes
+        mids = [np.asarray(midpoint_nodes(fu[:, a], fu[:, b]), np.int64) for a, b in ((0, 1), (1, 2), (2, 0))]
+        T, vertex_T = split(mids, int(n_lagrange)), T1
     wall = np.bincount(pu, weights=area, minlength=n_pores)
     vec = np.stack([np.bincount(pu, weights=-area * nrm[:, k], minlength=n_pores) for k in range(3)], axis=1)
     order = np.argsort(pu, kind="stable")
     ptr = np.searchsorted(pu[order], np.arange(n_pores + 1))
     nodes = tuple(np.unique(fu[order[ptr[i]:ptr[i + 1]]]) for i in range(n_pores))
-    return Interface(T, "traction", wall, nodes, 0, time.perf_counter() - t0, wall_vector=vec)
+    return Interface(T, "traction", wall, nodes, 0, time.perf_counter() - t0, wall_vector=vec,
+                     vertex_operator=vertex_T)

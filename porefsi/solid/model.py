@@ -51,7 +51,9 @@ class SolidModel:
     load_factor : callable, optional
         ``t -> float`` multiplying the tractions (default 1).
     nodal_forces : ndarray (Nn, 3) or callable ``t -> (Nn, 3)``, optional
-        Forces (N) on the mesh vertices, e.g. pore-pressure forces from the coupling.
+        Forces (N) on the mesh vertices, e.g. pore-pressure forces from the coupling; for P2
+        also shape (n_full / 3, 3), forces on every Lagrange node (vertices, then edge
+        midpoints, as :attr:`dof_points`), which a consistent P2 surface load needs.
     order : {1, 2}
         P1 (lumped mass, numba fast path) or P2 (consistent mass, scikit-fem forms).
     backend : {"auto", "numba", "skfem"}
@@ -108,11 +110,15 @@ class SolidModel:
         self._adaptive = None
 
     # ---- loads -------------------------------------------------------------------------
+    def _nodal_shapes(self) -> tuple:
+        return ((self.mesh.n_nodes, 3), (self.n_full // 3, 3))
+
     def _set_nodal(self, F):
         if F is not None and not callable(F):
             F = np.asarray(F, dtype=float)
-            if F.shape != (self.mesh.n_nodes, 3):
-                raise InputError(f"nodal forces must have shape ({self.mesh.n_nodes}, 3) (N), got {F.shape}")
+            if F.shape not in self._nodal_shapes():
+                raise InputError(f"nodal forces must have shape ({self.mesh.n_nodes}, 3) (N, on the vertices) or "
+                                 f"({self.n_full // 3}, 3) (on every Lagrange node), got {F.shape}")
         self._nodal = F
 
     def with_nodal_forces(self, F) -> SolidModel:
@@ -128,10 +134,11 @@ class SolidModel:
         if self._nodal is not None:
             F = self._nodal(t) if callable(self._nodal) else self._nodal
             F = np.asarray(F, dtype=float)
-            if F.shape != (self.mesh.n_nodes, 3):
-                raise InputError(f"nodal force function returned shape {F.shape}, expected ({self.mesh.n_nodes}, 3)")
+            if F.shape not in self._nodal_shapes():
+                raise InputError(f"nodal force function returned shape {F.shape}, expected ({self.mesh.n_nodes}, 3) "
+                                 f"or ({self.n_full // 3}, 3)")
             f = f.copy()
-            f[: 3 * self.mesh.n_nodes] += F.reshape(-1)
+            f[: F.size] += F.reshape(-1)
         return f
 
     # ---- protocol ------------------------------------------------------------------------
