@@ -52,6 +52,7 @@ import numpy as np  # noqa: E402
 from porefsi.case.config import load_case  # noqa: E402
 from porefsi.coupling.loop import CoupledRun  # noqa: E402
 from porefsi.coupling.problem import build_problem  # noqa: E402
+from porefsi.coupling.relaxation import aitken_omega  # noqa: E402
 from porefsi.coupling.update import geometric_update, update_nodes  # noqa: E402
 from porefsi.errors import ConvergenceError, PorefsiError  # noqa: E402
 from porefsi.flow.drainage import DrainageSimulator  # noqa: E402
@@ -251,10 +252,8 @@ def substeps(problem, n_iter: int, relaxation: str, kappa: float = 1.0, target=N
             U1 = model.expand(u1, t1)
             base_ = U_start if U_iter is None else U_iter
             r = U1 - base_
-            if r_prev is not None and relaxation == "aitken":
-                dr = r - r_prev
-                den = float(np.vdot(dr, dr))
-                omega = -omega * float(np.vdot(r_prev, dr)) / den if den > 0 else omega
+            if relaxation == "aitken":
+                omega = aitken_omega(omega, r, r_prev)
             hist.append(float(np.linalg.norm(r)) / max(float(np.linalg.norm(U1)), 1e-300))
             U_iter, r_prev = base_ + omega * r, r
             omegas.append(float(omega))

@@ -29,6 +29,7 @@ import numpy as np
 from porefsi.coupling._loop_support import _SOLVER_FAILURES, StageClock, _same_topology, _solver_failure, _TangentLog
 from porefsi.coupling.interface import Interface
 from porefsi.coupling.problem import CoupledProblem, build_interface
+from porefsi.coupling.relaxation import aitken_omega
 from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change, update_nodes
 from porefsi.errors import ConvergenceError, NetworkError
 from porefsi.flow.drainage import DrainageSimulator
@@ -388,10 +389,8 @@ class CoupledRun:
                 if cc.subiterations > 1:
                     base = U_start if U_iter is None else U_iter
                     r = U1 - base
-                    if r_prev is not None and cc.relaxation == "aitken":
-                        dr = r - r_prev
-                        den = float(np.vdot(dr, dr))
-                        omega = -omega * float(np.vdot(r_prev, dr)) / den if den > 0 else omega
+                    if cc.relaxation == "aitken":
+                        omega = aitken_omega(omega, r, r_prev)
                     res_hist.append(float(np.linalg.norm(r)) / max(float(np.linalg.norm(U1)), 1e-300))
                     U_iter, r_prev = base + omega * r, r
                     omega_hist.append(float(omega))
