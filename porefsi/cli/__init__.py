@@ -77,7 +77,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_OK
     try:
         with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
-            return int(args.func(args) or 0)
+            code = int(args.func(args) or 0)
+        sys.stdout.flush()  # a reader that closed early shows up here, not at interpreter exit
+        return code
     except PorefsiError as exc:
         print(f"porefsi: error: {exc}", file=sys.stderr)
         return EXIT_ERROR
