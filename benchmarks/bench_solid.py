@@ -131,9 +131,17 @@ def main(argv=None):
     p.add_argument("--repeat", type=int, default=3)
     p.add_argument("--direct", action="store_true", help="also time SuperLU (slow: ~30 s at 57k tets)")
     p.add_argument("--skip-skfem", action="store_true")
+    p.add_argument("--image", type=Path, default=None,
+                   help="npz with keys image, voxel_size_m instead of the built-in 120^3 sample (e.g. "
+                        "../shared/data/berea_icl_400.npz, to reach >= 1M tets)")
+    p.add_argument("--crop", type=int, default=None, help="use the first N^3 voxels of the image")
     args = p.parse_args(argv)
-    d = np.load(ROOT / "porefsi" / "data" / "berea_icl_120_paper.npz")
-    img = VoxelImage(d["image"], float(d["voxel_size_m"]))
+    d = np.load(args.image if args.image else ROOT / "porefsi" / "data" / "berea_icl_120_paper.npz")
+    phases = d["image"]
+    if args.crop:
+        phases = phases[: args.crop, : args.crop, : args.crop]
+    img = VoxelImage(np.ascontiguousarray(phases), float(d["voxel_size_m"]))
+    print(f"image {img.shape}, voxel {img.voxel_size:.4g} m", flush=True)
     for c in (int(s) for s in args.sizes.split(",")):
         run_size(img, c, args)
     return 0
