@@ -23,8 +23,7 @@ from porefsi.image.ops import crop, percolating_cluster
 from porefsi.image.voxel_image import VoxelImage, axis_index
 from porefsi.network.extract import Extraction, extract_network
 from porefsi.network.network import Network
-from porefsi.solid.bc import check_load_path, uniaxial_bcs
-from porefsi.solid.forms import edge_midpoint_nodes
+from porefsi.solid.bc import check_load_path, midpoint_nodes, uniaxial_bcs
 from porefsi.solid.materials import make_material
 from porefsi.solid.mesh import MeshResult, SolidMesh, mesh_solid
 from porefsi.solid.model import SolidModel
@@ -135,7 +134,7 @@ def build_interface(case: Case, network: Network, labels: np.ndarray, mesh: Soli
                                     max_steps=max(4, 2 * case.solid.coarsen))
     p2 = None
     if model is not None and model.order == 2:
-        p2 = (lambda a, b: edge_midpoint_nodes(model.feb, a, b), model.n_full // 3)
+        p2 = (lambda a, b: midpoint_nodes(mesh, model.dof_points, a, b), model.n_full // 3)
     return traction_interface(mesh.points, mesh.tets, facets, owner, network.n_pores, p2_nodes=p2)
 
 

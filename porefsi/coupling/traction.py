@@ -113,7 +113,7 @@ def traction_interface(points, tets, facets, facet_pore, n_pores: int, *, p2_nod
     n_pores : int
     p2_nodes : tuple (callable, int), optional
         ``(midpoint_nodes, n_lagrange)`` of a P2 basis: ``midpoint_nodes(a, b)`` gives the
-        Lagrange node of each edge (e.g. :func:`porefsi.solid.forms.edge_midpoint_nodes`),
+        Lagrange node of each edge (e.g. :func:`porefsi.solid.bc.midpoint_nodes`),
         ``n_lagrange`` the number of Lagrange nodes. The operator then acts on all Lagrange
         nodes, and :attr:`~porefsi.coupling.interface.Interface.vertex_operator` keeps the P1
         vertex split for outputs.
@@ -150,8 +150,10 @@ def traction_interface(points, tets, facets, facet_pore, n_pores: int, *, p2_nod
         T, vertex_T = T1, None
     else:
         midpoint_nodes, n_lagrange = p2_nodes
-        mids = [np.asarray(midpoint_nodes(fu[:, a], fu[:, b]), np.int64) for a, b in ((0, 1), (1, 2), (2, 0))]
-        T, vertex_T = split(mids, int(n_lagrange)), T1
+        pairs = ((0, 1), (1, 2), (2, 0))
+        mids = np.asarray(midpoint_nodes(np.concatenate([fu[:, a] for a, _ in pairs]),
+                                         np.concatenate([fu[:, b] for _, b in pairs])), np.int64)
+        T, vertex_T = split(np.split(mids, 3), int(n_lagrange)), T1
     wall = np.bincount(pu, weights=area, minlength=n_pores)
     vec = np.stack([np.bincount(pu, weights=-area * nrm[:, k], minlength=n_pores) for k in range(3)], axis=1)
     order = np.argsort(pu, kind="stable")

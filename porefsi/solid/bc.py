@@ -17,10 +17,10 @@ from porefsi.image.voxel_image import axis_index
 from porefsi.solid.mesh import FACE_NAMES, FACET_TAGS, SolidMesh
 
 __all__ = ["Fixed", "Roller", "Prescribed", "Affine", "Traction", "Constraints", "uniaxial_bcs", "face_dofs",
-           "face_nodes", "check_load_path"]
+           "face_nodes", "midpoint_nodes", "check_load_path"]
 
-#: Tolerance, relative to the mesh extent, for matching the edge midpoints of box-face facets to
-#: P2 Lagrange nodes (both are midpoints of the same two vertices, up to rounding).
+#: Tolerance, relative to the mesh extent, for matching edge midpoints to P2 Lagrange nodes (both
+#: are midpoints of the same two vertices, up to rounding).
 _MIDPOINT_RTOL = 1e-9
 
 
@@ -130,21 +130,43 @@ def face_nodes(mesh: SolidMesh, dof_points: np.ndarray, face: str) -> np.ndarray
     """
     tri = mesh.facets_tagged(_face(face))
     nodes = np.unique(tri)
-    n_extra = len(dof_points) - mesh.n_nodes
-    if n_extra <= 0 or len(tri) == 0:
+    if len(dof_points) <= mesh.n_nodes or len(tri) == 0:
         return nodes.astype(np.int64)
-    from scipy.spatial import cKDTree
-
     # P2: the edge midpoints of the tagged triangles
     edges = np.unique(np.sort(tri[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0)
-    mid = 0.5 * (mesh.points[edges[:, 0]] + mesh.points[edges[:, 1]])
+    mids = midpoint_nodes(mesh, dof_points, edges[:, 0], edges[:, 1])
+    return np.concatenate([nodes, np.unique(mids)]).astype(np.int64)
+
+
+def midpoint_nodes(mesh: SolidMesh, dof_points: np.ndarray, a, b) -> np.ndarray:
+    """P2 Lagrange node at the midpoint of each mesh edge ``(a[i], b[i])``, shape (k,).
+
+    Parameters
+    ----------
+    mesh : SolidMesh
+    dof_points : ndarray of float, shape (N, 3)
+        Lagrange node positions, m: the mesh vertices, then the edge midpoints (P2).
+    a, b : array_like of int, shape (k,)
+        Vertex pairs (mesh edges).
+
+    Raises
+    ------
+    MeshError
+        If ``dof_points`` has no edge nodes (P1) or a pair's midpoint is not one of them.
+    """
+    from scipy.spatial import cKDTree
+
     extra = np.asarray(dof_points[mesh.n_nodes:], dtype=float)
+    if len(extra) == 0:
+        raise MeshError("edge midpoint nodes exist for P2 Lagrange nodes only; these are the mesh vertices")
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    mid = 0.5 * (mesh.points[a] + mesh.points[b])
     dist, idx = cKDTree(extra).query(mid)
     tol = _MIDPOINT_RTOL * float(np.ptp(mesh.points, axis=0).max())
     if np.any(dist > tol):
-        raise MeshError(f"{int(np.count_nonzero(dist > tol))} edge midpoints of the {face} facets are not "
-                        "P2 nodes: dof_points do not belong to this mesh")
-    return np.concatenate([nodes, mesh.n_nodes + np.unique(idx)]).astype(np.int64)
+        raise MeshError(f"{int(np.count_nonzero(dist > tol))} edge midpoints are not P2 nodes: dof_points do "
+                        "not belong to this mesh")
+    return mesh.n_nodes + idx.astype(np.int64)
 
 
 def face_dofs(mesh: SolidMesh, dof_points: np.ndarray, face: str, component: int) -> np.ndarray:

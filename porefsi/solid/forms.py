@@ -74,33 +74,6 @@ def make_basis(mesh: SolidMesh, order: int = 1) -> FEBasis:
     return FEBasis(mesh=mesh, order=order, basis=basis, n_dofs=basis.N, dof_points=pts)
 
 
-def edge_midpoint_nodes(feb: FEBasis, a, b) -> np.ndarray:
-    """P2 Lagrange node at the midpoint of each mesh edge ``(a[i], b[i])``, shape (k,).
-
-    scikit-fem numbers a P2 basis's edge nodes after the vertices, in the order of its mesh's
-    edges (``mesh.edges``, each with its smaller vertex first): edge ``e`` has Lagrange node
-    ``Nn + e``.
-
-    Raises
-    ------
-    MeshError
-        If the basis is not P2 or a pair is not an edge of the mesh.
-    """
-    if feb.order != 2:
-        raise MeshError(f"edge midpoint nodes exist for P2 bases only, this one is P{feb.order}")
-    lo = np.minimum(np.asarray(a, np.int64), np.asarray(b, np.int64))
-    hi = np.maximum(np.asarray(a, np.int64), np.asarray(b, np.int64))
-    edges = np.asarray(feb.basis.mesh.edges, np.int64)
-    nn = feb.mesh.n_nodes
-    key = edges[0] * nn + edges[1]
-    order = np.argsort(key)
-    q = lo * nn + hi
-    pos = np.minimum(np.searchsorted(key[order], q), key.size - 1)
-    if key.size == 0 or np.any(key[order][pos] != q):
-        raise MeshError("a vertex pair is not an edge of the mesh; pass facets of this mesh")
-    return nn + order[pos]
-
-
 def deformation_gradient(feb: FEBasis, u: np.ndarray) -> np.ndarray:
     """F = I + grad u at the quadrature points, shape (3, 3, Ne, nqp)."""
     return np.eye(3)[:, :, None, None] + grad(feb.basis.interpolate(u))
