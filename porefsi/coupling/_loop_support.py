@@ -7,6 +7,7 @@ stage clocks (wall and CPU seconds).
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import time
 
 import numpy as np
@@ -68,6 +69,11 @@ def _solver_failure(exc: BaseException, t: float, part: str = "solid") -> Conver
         f"the solid's linear solver failed at t = {t:g} s ({type(exc).__name__}: {exc}); the tangent is "
         "singular or not positive definite: check for floating or inverted elements (solid.coarsen), "
         "reduce coupling.exchange_dt, or try solid.linear_solver = 'amg'")
+
+
+def _digest(phases: np.ndarray) -> bytes:
+    """SHA-1 of a voxel image's bytes (the key of the loop's extraction cache)."""
+    return hashlib.sha1(memoryview(np.ascontiguousarray(phases)).cast("B")).digest()
 
 
 def _same_topology(a: Network, b: Network) -> bool:

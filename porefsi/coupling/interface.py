@@ -169,9 +169,7 @@ class Interface:
         if self.throat_operator is not None and self.throat_operator.shape[1]:
             conns = np.asarray(self.throat_pores, np.int64)
             area_t = np.asarray(self.throat_area, float)
-            n_t = len(conns)
-            C = sp.csr_matrix((np.full(2 * n_t, 0.5), (np.repeat(np.arange(n_t), 2), conns.ravel())),
-                              shape=(n_t, self.n_pores))
+            C = _throat_mean(conns, self.n_pores)
             T = T - self.throat_operator @ C
             np.subtract.at(sphere, conns[:, 0], 0.5 * area_t)
             np.subtract.at(sphere, conns[:, 1], 0.5 * area_t)
@@ -182,6 +180,13 @@ class Interface:
         dev += float(np.sum(ap * np.abs(_column_magnitudes(T) - sphere)))
         ref += float(np.sum(ap * sphere))
         return dev / ref if ref > 0 else 0.0
+
+
+def _throat_mean(conns: np.ndarray, n_pores: int) -> sp.csr_matrix:
+    """``C`` (Nt, Np): row ``t`` takes the mean pressure of throat ``t``'s two pores."""
+    n_t = len(conns)
+    return sp.csr_matrix((np.full(2 * n_t, 0.5), (np.repeat(np.arange(n_t), 2), np.asarray(conns).ravel())),
+                         shape=(n_t, n_pores))
 
 
 def _column_magnitudes(T: sp.spmatrix) -> np.ndarray:
@@ -397,9 +402,7 @@ def hull_interface(
             np.add.at(wall, conns[:, 1], 0.5 * area_t)
     T = _assemble(rows, cols, vals, (3 * x.shape[0], n_p))
     if throat_op is not None:
-        C = sp.csr_matrix((np.full(2 * len(conns), 0.5), (np.repeat(np.arange(len(conns)), 2), conns.ravel())),
-                          shape=(len(conns), n_p))
-        T = (T + throat_op @ C).tocsr()
+        T = (T + throat_op @ _throat_mean(conns, n_p)).tocsr()
         throat_area = area_t
     return Interface(T, "hull", wall, tuple(pore_nodes), n_unloaded, time.perf_counter() - t0, handed,
                      throat_operator=throat_op, throat_pores=conns if throat_op is not None else None,

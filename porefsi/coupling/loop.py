@@ -18,7 +18,6 @@ geometric update always maps the *reference* network with the *total* displaceme
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import math
 import pickle
 import time
@@ -26,7 +25,14 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from porefsi.coupling._loop_support import _SOLVER_FAILURES, StageClock, _same_topology, _solver_failure, _TangentLog
+from porefsi.coupling._loop_support import (
+    _SOLVER_FAILURES,
+    StageClock,
+    _digest,
+    _same_topology,
+    _solver_failure,
+    _TangentLog,
+)
 from porefsi.coupling.interface import Interface
 from porefsi.coupling.problem import CoupledProblem, build_interface
 from porefsi.coupling.relaxation import aitken_omega
@@ -191,8 +197,7 @@ class CoupledRun:
         self._tdg_pin_dt: float | None = None  # dt of the restored stepper whose tangent is pinned
         self._update_nodes = None  # per-pore nodes of the geometric update (built on first use)
         # extractions by voxel-image digest (re-extraction mode), seeded with the reference image's
-        self._extractions = {hashlib.sha1(np.ascontiguousarray(problem.image.phases).tobytes()).digest():
-                             problem.extraction}
+        self._extractions = {_digest(problem.image.phases): problem.extraction}
         self.n_extractions = 0  # re-extractions actually computed (not served from the above)
         self.n_extractions_reused = 0  # re-extractions served from the digest cache
         self.seconds = dict.fromkeys(("fluid", "interface", "solid", "update", "stress", "permeability"), 0.0)
@@ -292,7 +297,7 @@ class CoupledRun:
         # The extraction is deterministic: the same voxel image gives the same network bit for bit,
         # so an image seen before (at the paper's loads: always the reference image, displacements
         # being ~1e-6 voxel) reuses its extraction instead of repeating it.
-        key = hashlib.sha1(np.ascontiguousarray(img.phases).tobytes()).digest()
+        key = _digest(img.phases)
         ex = self._extractions.get(key) if self.reuse_extractions else None
         if ex is not None:
             self.n_extractions_reused += 1
@@ -382,7 +387,8 @@ class CoupledRun:
                         raise _solver_failure(exc, t0, "fluid") from exc
                 with clock("interface"):
                     forces = {t0: F0} | {s: itf_k.nodal_forces(P) for s, P in pressures.items()}
-                    F1 = itf_k.vertex_forces(pressures[t1])  # outputs: on the vertices (P1 split for P2)
+                    # outputs are drawn on the vertices: the P1 split of a P2 operator's load
+                    F1 = forces[t1] if itf_k.vertex_operator is None else itf_k.vertex_forces(pressures[t1])
                 with clock("solid"):
                     u1, v1 = self._solid_step(self.u, self.v, t0, dt, forces)
                     U1 = self.model.expand(u1, t1)
