@@ -248,14 +248,12 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     counterpart of the wall-time ``seconds_by_stage`` (set-up stages, then the loop's, cumulative
     over a resumed run like the totals).
     """
-    t_start = time.perf_counter()
-    clock = _RunClock(time.process_time())
+    clock = _RunClock(time.perf_counter(), time.process_time())
     out = Path(out if out is not None else case.output.dir)
     out.mkdir(parents=True, exist_ok=True)
     ckpt = out / "checkpoint.npz"
     progress = sys.stderr.isatty() if progress is None else progress
     figures = case.output.figures if figures is None else figures
-    wall_before = 0.0  # wall time of earlier processes of this run, up to their last checkpoint
     if resume:
         if not ckpt.is_file():
             raise ConfigError(f"--resume: no checkpoint in {str(out)!r}; run without --resume to start")
@@ -264,7 +262,7 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
         if case_to_dict(saved) != case_to_dict(case):
             raise ConfigError(f"--resume: the case differs from the one that started {str(out)!r}; "
                               "resume with the same case file or start a new run directory")
-        wall_before = float(meta.get("wall_seconds", 0.0))
+        clock.wall_before = float(meta.get("wall_seconds", 0.0))
         clock.cpu_before = float(meta.get("process_cpu_seconds", 0.0))
         # the steps after the checkpoint are redone: their files go (they are rewritten)
         _clear_outputs(out, after_step=int(meta["step_index"]))
@@ -272,15 +270,13 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
         _clear_outputs(out)
     results.atomic_write_text(out / "case.toml", case_to_toml(case))
 
-    def elapsed() -> float:
-        return wall_before + time.perf_counter() - t_start
-
     run = None
     rows: list = []
     setup_seconds: dict = {}
     status, error = "completed", None
     try:
         problem = build_problem(case)
+        edges = _psd_edges(problem.network)  # fixed pore-size bins of the whole run
         if resume:
             run = CoupledRun.restore(problem, arrays, meta, reuse_extractions=reuse_extractions)
             # JSON keeps NaN as null: give the restored rows their NaN back
@@ -299,12 +295,11 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             clock.setup_cpu = dict(problem.cpu_seconds)
             rec0 = run.initial_record()
             rows.append(rec0.row)
-            _write_pores(out, rec0, _psd_edges(problem.network))
+            _write_pores(out, rec0, edges)
             if case.output.vtk:
                 _write_snapshot(out, rec0, run, series)
             snapshots.append(_snapshot(rec0))
         bar = _Progress(run.n_steps, progress, start=run.step_index)
-        edges = _psd_edges(problem.network)
         n_done = 0
         for rec in run.steps():
             rows.append(rec.row)
@@ -319,7 +314,7 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             if on_record is not None:
                 on_record(rec)
             if run.step_index % case.output.checkpoint_every == 0 or last:
-                _save(ckpt, run, case, rows, snapshots, setup_seconds, elapsed(), clock)
+                _save(ckpt, run, case, rows, snapshots, setup_seconds, clock)
             bar.update(run.step_index, rec.t, f"Sw={rec.row['sw']:.3f}")
             n_done += 1
             if stop_after is not None and n_done >= stop_after:
@@ -331,11 +326,11 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
         status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
         error = f"{type(exc).__name__}: {exc}"
         with contextlib.suppress(Exception):  # never hide the original error behind a write error
-            _write_summary(out, case, run, rows, setup_seconds, t_start, wall_before, status, error, [], clock)
+            _write_summary(out, case, run, rows, setup_seconds, status, error, [], clock)
         raise
     ts = _columns(rows)
     made = _figures(out, ts, snapshots, run, progress) if (figures and status == "completed") else []
-    summary = _write_summary(out, case, run, rows, setup_seconds, t_start, wall_before, status, error, made, clock)
+    summary = _write_summary(out, case, run, rows, setup_seconds, status, error, made, clock)
     return RunOutput(summary, out, ts)
 
 
@@ -350,25 +345,29 @@ _SNAP_KEYS = ("coords", "radius", "nw_saturation", "displacement", "von_mises", 
 
 @dataclasses.dataclass
 class _RunClock:
-    """CPU-time bookkeeping of :func:`run_case` (the wall time's is its ``t_start``/``wall_before``)."""
+    """Wall and CPU time of :func:`run_case`, cumulative over the processes of a resumed run."""
 
-    cpu_start: float  # process_time at the start of this process's run_case
+    wall_start: float  # perf_counter at the start of this process's run_case
+    cpu_start: float  # process_time at the same moment
+    wall_before: float = 0.0  # wall seconds of earlier processes of this run, up to their last checkpoint
     cpu_before: float = 0.0  # CPU seconds of earlier processes of this run, up to their last checkpoint
     setup_cpu: dict = dataclasses.field(default_factory=dict)  # CPU seconds of the set-up stages
+
+    def wall_this_process(self) -> float:
+        return time.perf_counter() - self.wall_start
 
     def cpu_this_process(self) -> float:
         return time.process_time() - self.cpu_start
 
 
-def _save(path, run: CoupledRun, case: Case, rows, snapshots, setup_seconds, wall_seconds: float,
-          clock: _RunClock) -> None:
+def _save(path, run: CoupledRun, case: Case, rows, snapshots, setup_seconds, clock: _RunClock) -> None:
     arrays, meta = run.checkpoint()
     for i, s in enumerate(snapshots):
         for k in _SNAP_KEYS:
             arrays[f"snap{i}_{k}"] = s[k]
     meta.update(case=case_to_dict(case), rows=rows, setup_seconds=setup_seconds,
                 snapshots=[{"t": s["t"], "step": s["step"]} for s in snapshots], version=__version__,
-                wall_seconds=wall_seconds, setup_cpu_seconds=clock.setup_cpu,
+                wall_seconds=clock.wall_before + clock.wall_this_process(), setup_cpu_seconds=clock.setup_cpu,
                 process_cpu_seconds=clock.cpu_before + clock.cpu_this_process())
     results.save_checkpoint(path, arrays, meta)
 
@@ -381,10 +380,10 @@ def _columns(rows: list[dict]) -> dict:
     return {k: [r[k] for r in rows] for k in TIMESERIES_COLUMNS}
 
 
-def _write_summary(out, case, run: CoupledRun | None, rows, setup_seconds, t_start, wall_before, status, error,
-                   figures, clock: _RunClock) -> dict:
-    this_process = time.perf_counter() - t_start
-    wall_seconds = wall_before + this_process
+def _write_summary(out, case, run: CoupledRun | None, rows, setup_seconds, status, error, figures,
+                   clock: _RunClock) -> dict:
+    this_process = clock.wall_this_process()
+    wall_seconds = clock.wall_before + this_process
     cpu_this = clock.cpu_this_process()
     if run is None:  # failed while setting up: what is known
         summary = {"status": status, "error": error, "case": case.name, "porefsi_version": __version__,
