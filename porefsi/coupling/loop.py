@@ -38,7 +38,7 @@ from porefsi.coupling.problem import CoupledProblem, build_interface
 from porefsi.coupling.relaxation import aitken_omega
 from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change, update_nodes
 from porefsi.errors import ConvergenceError, NetworkError
-from porefsi.flow.drainage import DrainageSimulator
+from porefsi.flow.drainage import OUTLET_PRESSURE, DrainageSimulator
 from porefsi.flow.permeability import absolute_permeability
 from porefsi.flow.state import FlowState
 from porefsi.image.ops import percolating_cluster
@@ -49,9 +49,6 @@ from porefsi.solid.static import solve_static
 from porefsi.solid.stress import element_cauchy, nodal_average, von_mises
 
 __all__ = ["ExchangeRecord", "CoupledRun", "TIMESERIES_COLUMNS", "TIMESERIES_DOCS", "OUTLET_PRESSURE"]
-
-#: Pressure of the outlet (virtual outlet node of the drainage), Pa: pressures are gauge.
-OUTLET_PRESSURE = 0.0
 
 #: Columns of the per-exchange-step time series (``timeseries.csv``).
 TIMESERIES_COLUMNS = (
