@@ -23,7 +23,7 @@ import numpy as np
 from porefsi.errors import InputError
 from porefsi.image._mhd import MHD_UNITS, _read_mhd, _read_raw, _write_mhd
 from porefsi.image._tiff import _read_tiff, _require_3d
-from porefsi.image.voxel_image import VoxelImage
+from porefsi.image.voxel_image import VoxelImage, positive_length
 
 # MetaImage parsing/writing lives in _mhd.py, TIFF reading in _tiff.py; MHD_UNITS is re-exported here.
 __all__ = ["segment", "read_image", "write_image", "load_sample", "SAMPLES", "READ_FORMATS", "MHD_UNITS"]
@@ -252,20 +252,6 @@ def _read_any(p: Path, suffix: str, shape, dtype, key, mhd_unit, raw_order, voxe
     return arr, file_vs, origin
 
 
-def _check_voxel_size(voxel_size) -> float:
-    """``voxel_size`` as a float, or :class:`InputError` unless it is a positive finite number."""
-    try:
-        vs = float(voxel_size)
-    except (TypeError, ValueError):
-        vs = math.nan
-    if not math.isfinite(vs) or vs <= 0:
-        raise InputError(
-            f"voxel_size must be a positive length in metres, got {voxel_size!r}; pass a number such as "
-            "5.345e-6 (CLI --voxel-size M)"
-        )
-    return vs
-
-
 def read_image(
     path,
     *,
@@ -337,7 +323,7 @@ def read_image(
     ((120, 120, 120), 5.345e-06, 0.18821)
     """
     if voxel_size is not None:  # before reading: a bad value must not surface as a read error
-        voxel_size = _check_voxel_size(voxel_size)
+        voxel_size = positive_length(voxel_size, "voxel_size", "; pass a number such as 5.345e-6 (CLI --voxel-size M)")
     p = Path(path)
     if not p.exists():
         raise InputError(f"image file {p} does not exist; check the path (run from the right directory?)")

@@ -8,10 +8,24 @@ import numpy as np
 
 from porefsi.errors import InputError
 
-__all__ = ["VoxelImage", "AXES", "axis_index"]
+__all__ = ["VoxelImage", "AXES", "axis_index", "positive_length"]
 
 #: Axis names; x, y, z are array axes 0, 1, 2.
 AXES = ("x", "y", "z")
+
+
+def positive_length(value, name: str, hint: str = "") -> float:
+    """``value`` as a float length in metres, or :class:`InputError` unless it is finite and > 0.
+
+    The message reads ``"{name} must be a positive length in metres, got {value!r}{hint}"``.
+    """
+    try:
+        x = float(value)
+    except (TypeError, ValueError):  # e.g. a string that is not a number
+        x = float("nan")
+    if not np.isfinite(x) or x <= 0:
+        raise InputError(f"{name} must be a positive length in metres, got {value!r}{hint}")
+    return x
 
 
 def axis_index(axis: str | int) -> int:
@@ -82,12 +96,7 @@ class VoxelImage:
         if ph.flags.writeable and isinstance(self.phases, np.ndarray) and np.shares_memory(ph, self.phases):
             ph = ph.copy()  # never freeze (or alias) the caller's array
         ph.setflags(write=False)
-        try:
-            vs = float(self.voxel_size)
-        except (TypeError, ValueError):  # e.g. a string that is not a number
-            vs = float("nan")
-        if not np.isfinite(vs) or vs <= 0:
-            raise InputError(f"voxel size must be a positive length in metres, got {self.voxel_size!r}")
+        vs = positive_length(self.voxel_size, "voxel size")
         org = np.asarray(self.origin, dtype=float).reshape(-1)
         if org.shape != (3,) or not np.all(np.isfinite(org)):
             raise InputError(f"origin must be 3 finite numbers (m), got {self.origin!r}")

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 
 from porefsi.errors import InputError, NetworkError
-from porefsi.image.voxel_image import axis_index
+from porefsi.image.voxel_image import axis_index, positive_length
 
 __all__ = ["Network", "FACES"]
 
@@ -180,13 +180,7 @@ class Network:
                     f"{rmax[t]:.4g} m; clip throat radii to min(pore radii)"
                 )
         f["throat_conns"] = conns
-        try:
-            vs = float(self.voxel_size)
-        except (TypeError, ValueError):
-            vs = float("nan")
-        if not np.isfinite(vs) or vs <= 0:
-            raise InputError(f"Network.voxel_size must be a positive length in metres, got {self.voxel_size!r}")
-        f["voxel_size"] = vs
+        f["voxel_size"] = positive_length(self.voxel_size, "Network.voxel_size")
         try:
             shp = tuple(int(s) for s in self.shape)
         except (TypeError, ValueError):
