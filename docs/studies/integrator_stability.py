@@ -216,26 +216,11 @@ def _stepper(scheme, system, dt, opts):
 def modal_spectral_radius(scheme, system, M, phi, dt, opts):
     """Spectral radius of one step of ``scheme`` on mode ``phi`` of the 3-D system, measured.
 
-    Steps the unit modal states (u, v[, a]) = e_j phi and projects the result on phi (phi^T M x):
-    the columns of that mode's amplification matrix. Its eigenvalues do not depend on how u, v, a
-    are scaled, so they compare directly with the one-dof curves.
+    :func:`porefsi.integrators.spectral.modal_amplification_matrix`, projected with the lumped M.
     """
-    from porefsi.integrators.spectral import SCHEMES
+    from porefsi.integrators.spectral import modal_amplification_matrix
 
-    with_a = SCHEMES[scheme][1]
-    st = _stepper(scheme, system, dt, opts)
-    m = 3 if with_a else 2
-    A = np.empty((m, m))
-    for j in range(m):
-        e = np.zeros(m)
-        e[j] = 1.0
-        if with_a:
-            u1, v1, info = st.step(e[0] * phi, e[1] * phi, 0.0, a=e[2] * phi)
-            cols = (u1, v1, info.extra["a"])
-        else:
-            u1, v1, _ = st.step(e[0] * phi, e[1] * phi, 0.0)
-            cols = (u1, v1)
-        A[:, j] = [phi @ (M * x) for x in cols]
+    A = modal_amplification_matrix(scheme, system, dt, phi, M, **opts)
     return float(np.max(np.abs(np.linalg.eigvals(A))))
 
 

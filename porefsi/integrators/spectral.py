@@ -23,7 +23,7 @@ from porefsi.integrators.system import LinearSystem
 from porefsi.integrators.tdg import TDGStepper
 from porefsi.integrators.tdg_exact import TDGExactStepper
 
-__all__ = ["SCHEMES", "amplification_matrix", "spectral_radius"]
+__all__ = ["SCHEMES", "amplification_matrix", "modal_amplification_matrix", "spectral_radius"]
 
 #: name -> (stepper class, carries acceleration state)
 SCHEMES: dict[str, tuple[Callable, bool]] = {
@@ -58,20 +58,56 @@ def amplification_matrix(scheme: str, omega_dt: float, **options) -> np.ndarray:
     w = float(omega_dt)
     if not np.isfinite(w) or w <= 0:
         raise InputError(f"omega_dt={omega_dt!r} must be finite and > 0")
-    cls, with_a = SCHEMES[scheme]
     system = LinearSystem(np.array([1.0]), np.array([[w * w]]))
-    stepper = cls(system, 1.0, **options)
+    return modal_amplification_matrix(scheme, system, 1.0, np.array([1.0]), np.array([1.0]), **options)
+
+
+def modal_amplification_matrix(scheme: str, system, dt: float, phi: np.ndarray, weight: np.ndarray,
+                               **options) -> np.ndarray:
+    r"""Amplification matrix of one step of ``scheme`` on the mode ``phi`` of ``system``.
+
+    Steps the unit modal states :math:`(u, v[, a]) = e_j\,\phi` and projects each result on
+    :math:`\phi` (:math:`\phi^T W x`): the columns of that mode's amplification matrix. For a
+    mode of a linear system its eigenvalues equal the one-dof matrix's at
+    :math:`\omega\Delta t` (:func:`amplification_matrix` is this on a one-dof system).
+
+    Parameters
+    ----------
+    scheme : str
+        One of :data:`SCHEMES`.
+    system : LinearSystem
+        The (linear) system the stepper integrates.
+    dt : float
+        Time step, s.
+    phi : ndarray, shape (n,)
+        The mode, W-orthonormal (:math:`\phi^T W \phi = 1`).
+    weight : ndarray, shape (n,)
+        Diagonal of W (e.g. the lumped mass), for the projection.
+    **options
+        Passed to the stepper.
+
+    Returns
+    -------
+    ndarray (2, 2) or (3, 3)
+    """
+    if scheme not in SCHEMES:
+        raise InputError(f"unknown scheme {scheme!r}; choose one of {sorted(SCHEMES)}")
+    cls, with_a = SCHEMES[scheme]
+    stepper = cls(system, float(dt), **options)
+    phi = np.asarray(phi, dtype=float)
+    weight = np.asarray(weight, dtype=float)
     m = 3 if with_a else 2
     A = np.empty((m, m))
     for j in range(m):
         e = np.zeros(m)
         e[j] = 1.0
         if with_a:
-            u1, v1, info = stepper.step(e[:1], e[1:2], 0.0, a=e[2:3])
-            A[:, j] = [u1[0], v1[0], info.extra["a"][0]]
+            u1, v1, info = stepper.step(e[0] * phi, e[1] * phi, 0.0, a=e[2] * phi)
+            cols = (u1, v1, info.extra["a"])
         else:
-            u1, v1, _ = stepper.step(e[:1], e[1:2], 0.0)
-            A[:, j] = [u1[0], v1[0]]
+            u1, v1, _ = stepper.step(e[0] * phi, e[1] * phi, 0.0)
+            cols = (u1, v1)
+        A[:, j] = [phi @ (weight * x) for x in cols]
     return A
 
 
