@@ -6,12 +6,15 @@ outlet node pressure, the outlet being at 0 by construction), ``DIR/invasion.csv
 (``pore,time_s``: when each pore became fully non-wetting, empty if never), per-pore snapshots
 ``DIR/snapshot_<k>.csv`` (``pore,time_s,pressure_pa,fluid_pressure_pa,nw_saturation,state``) and
 ``DIR/pc_s.png``: the dynamic Pc–S curve next to the quasi-static one (invasion percolation with
-trapping on the same network and fluids).
+trapping on the same network and fluids). With ``-o DIR`` the run is saved to
+``DIR/drainage_checkpoint.pkl`` every ``--checkpoint-every`` seconds (a progress line on stderr
+each time); ``--resume`` continues a killed run from it, to the same result bit for bit.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -20,7 +23,10 @@ import numpy as np
 from porefsi.cli._common import emit, positive_float
 from porefsi.errors import InputError
 
-__all__ = ["register", "run", "write_pc_s"]
+__all__ = ["register", "run", "write_pc_s", "CHECKPOINT"]
+
+#: Checkpoint file name inside the output directory.
+CHECKPOINT = "drainage_checkpoint.pkl"
 
 
 def register(subparsers) -> None:
@@ -47,6 +53,11 @@ def register(subparsers) -> None:
                    help="number of evenly spaced per-pore snapshots written to DIR (default 5)")
     p.add_argument("-o", "--output", default=None, metavar="DIR",
                    help="directory for the CSV outputs and the Pc-S figure pc_s.png")
+    p.add_argument("--checkpoint-every", type=positive_float, default=60.0, metavar="SECONDS",
+                   help="with -o: save the run to DIR/drainage_checkpoint.pkl every SECONDS of wall time "
+                   "(default 60) and report progress on stderr")
+    p.add_argument("--resume", action="store_true",
+                   help="continue a killed run from DIR/drainage_checkpoint.pkl (same arguments)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=run)
 
@@ -60,14 +71,22 @@ def run(args: argparse.Namespace) -> int:
     fluids = Fluids(mu_w=args.mu_w, mu_n=args.mu_n, sigma=args.sigma, theta_deg=args.theta)
     if args.snapshots < 0:
         raise InputError(f"--snapshots must be >= 0, got {args.snapshots}")
+    if args.resume and not args.output:
+        raise InputError("--resume needs -o DIR: the checkpoint is DIR/drainage_checkpoint.pkl")
     t0 = time.perf_counter()
     net = network_from_args(args)
     times = np.linspace(0, args.t_end, args.snapshots + 1)[1:] if args.snapshots else None
-    res = simulate_drainage(net, fluids, rate=args.rate, t_end=args.t_end, times=times, axis=args.axis)
     out = None
+    ckpt = {}
     if args.output:
         out = Path(args.output)
         out.mkdir(parents=True, exist_ok=True)
+        ckpt = dict(checkpoint=out / CHECKPOINT, checkpoint_every=args.checkpoint_every, resume=args.resume,
+                    progress=_progress(args.t_end))
+    t_sim = time.perf_counter()
+    res = simulate_drainage(net, fluids, rate=args.rate, t_end=args.t_end, times=times, axis=args.axis, **ckpt)
+    t_sim = time.perf_counter() - t_sim
+    if out is not None:
         h = res.history
         np.savetxt(out / "drainage.csv", np.column_stack([h[k] for k in HISTORY_COLUMNS]), delimiter=",",
                    header=",".join(HISTORY_COLUMNS), comments="", fmt="%.10g")
@@ -93,6 +112,15 @@ def run(args: argparse.Namespace) -> int:
     }
     emit(summary, args.json)
     return 0
+
+
+def _progress(t_end: float):
+    """A checkpoint callback printing one progress line on stderr."""
+    def report(sim, seconds):
+        st = sim._engine
+        print(f"drainage: t = {st.t:.4g} / {t_end:g} s, {st.n_fills} pores full, Sw = {st.sw():.4f}, "
+              f"{st.n_events} events, {seconds:.0f} s (checkpoint saved)", file=sys.stderr, flush=True)
+    return report
 
 
 def write_pc_s(path, net, fluids, axis, rate: float, res) -> Path:

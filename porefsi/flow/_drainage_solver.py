@@ -102,6 +102,7 @@ class PressureSolver:
         self.n_columns = 0
         self.n_column_batches = 0
         self.n_prefetched = 0
+        self._saved_base = None  # the low-rank base of an unpickled solver, rebuilt at the next solve
         self._fail_streak = 0  # consecutive low-rank updates that missed the residual target
         self._direct_left = 0  # solves left to factorise directly after such a streak
 
@@ -109,16 +110,39 @@ class PressureSolver:
         d.setdefault("prefetch", True)
         d.setdefault("_fail_streak", 0)
         d.setdefault("_direct_left", 0)
+        d.setdefault("_saved_base", None)
         for k in ("n_columns", "n_column_batches", "n_prefetched"):
             d.setdefault(k, 0)
         self.__dict__.update(d)
 
-    def __getstate__(self):  # factorisations are not picklable: drop them, rebuilt on demand
+    def __getstate__(self):
+        """Pickle without factorisations (not picklable); the low-rank base is kept as its recipe.
+
+        The base matrix's values and the batches of cached columns are saved, so an unpickled
+        solver refactorises the same base and recomputes the same columns in the same batches:
+        a resumed run repeats the uninterrupted run's arithmetic exactly (checkpoints).
+        """
         d = self.__dict__.copy()
         d["_ml"] = None
         d["_ml_iters"] = None
+        base = d.pop("_base")
         d["_base"] = None
+        if base is not None:
+            d["_saved_base"] = {k: base[k] for k in ("data", "batches", "pref", "n_pref")}
         return d
+
+    def _restore_base(self, A):
+        """Rebuild the base saved by :meth:`__getstate__` (pattern from ``A``); counters unchanged."""
+        saved, self._saved_base = self._saved_base, None
+        A0 = sp.csr_array((saved["data"], A.indices, A.indptr), shape=A.shape)
+        n_setups, seconds = self.n_setups, self.seconds_setup
+        self._factor(A0)
+        self.n_setups, self.seconds_setup = n_setups, seconds
+        base = self._base
+        for nodes in saved["batches"]:
+            _solve_columns(base, nodes)
+        base["pref"][:] = saved["pref"]
+        base["n_pref"] = saved["n_pref"]
 
     def solve(self, A: sp.csr_array, b: np.ndarray, x0: np.ndarray | None = None,
               hint: np.ndarray | None = None) -> np.ndarray:
@@ -173,7 +197,7 @@ class PressureSolver:
         # gathers contiguous rows instead of multiplying the whole (n, cap) block
         self._base = dict(data=A.data.copy(), s=s, lu=_lu(_scaled(A, s)), rows=_rows(A),
                           col_of=np.full(A.shape[0], -1, dtype=np.int64), WT=np.empty((cap, A.shape[0])),
-                          ncols=0, n_pref=0, budget=budget, pref=np.zeros(A.shape[0], dtype=bool))
+                          ncols=0, n_pref=0, budget=budget, pref=np.zeros(A.shape[0], dtype=bool), batches=[])
         self.n_setups += 1
         self.seconds_setup += time.perf_counter() - t0
 
@@ -221,16 +245,13 @@ class PressureSolver:
         if new.size:
             self.n_columns += new.size
             self.n_column_batches += 1
-            k = base["ncols"]
-            E = np.zeros((base["WT"].shape[1], new.size))
-            E[new, np.arange(new.size)] = 1.0
-            base["WT"][k:k + new.size] = base["lu"].solve(E).T
-            base["col_of"][new] = np.arange(k, k + new.size)
-            base["ncols"] = k + new.size
+            _solve_columns(base, new)
         return base["col_of"][nodes]
 
     def _solve_lowrank(self, A, b, hint=None):
         fresh = False  # whether the base was factorised from this very matrix
+        if self._base is None and self._saved_base is not None:  # unpickled: the same base again
+            self._restore_base(A)
         if self._base is None or self._direct_left > 0:
             # the latter: after a run of failed low-rank updates (each a wasted attempt plus a
             # refactorisation), factorise each matrix directly for a while before trying again
@@ -315,6 +336,17 @@ class PressureSolver:
 
         self.n_setups += 1
         self._ml = pyamg.smoothed_aggregation_solver(As, max_coarse=500)
+
+
+def _solve_columns(base, nodes):
+    """Append ``A0^-1 e_v`` for ``nodes`` (none cached yet) to the base's cache: one batched solve."""
+    k = base["ncols"]
+    E = np.zeros((base["WT"].shape[1], nodes.size))
+    E[nodes, np.arange(nodes.size)] = 1.0
+    base["WT"][k:k + nodes.size] = base["lu"].solve(E).T
+    base["col_of"][nodes] = np.arange(k, k + nodes.size)
+    base["ncols"] = k + nodes.size
+    base["batches"].append(nodes.copy())
 
 
 def _woodbury(upd, y):

@@ -27,13 +27,13 @@ References
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time as _time
 
 import numpy as np
 
 from porefsi.errors import InputError
+from porefsi.flow import _drainage_checkpoint as _ckpt
 from porefsi.flow._drainage_engine import Engine
 from porefsi.flow._drainage_graph import build_graph
 from porefsi.flow.fluids import PAPER_FLUIDS, Fluids
@@ -49,6 +49,7 @@ from porefsi.flow.state import (
     THROAT_PINNED,
     THROAT_TRAPPED,
     THROAT_WETTING,
+    DrainageResult,
     FlowState,
 )
 from porefsi.image.voxel_image import axis_index
@@ -409,61 +410,10 @@ def _make_state(sim: DrainageSimulator, e: Engine) -> FlowState:
     )
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
-class DrainageResult:
-    """Outcome of :func:`simulate_drainage`.
-
-    Attributes
-    ----------
-    history : dict of str to ndarray
-        Time series, one row per event (:data:`HISTORY_COLUMNS`): time s, injected volume m³,
-        wetting saturation, inlet pressure Pa (NaN for events whose solve was skipped), capillary
-        pressure Pa (``capillary_pressure_pa``: inlet minus outlet node pressure; the outlet is at
-        :data:`OUTLET_PRESSURE` = 0 by construction, so it equals the inlet pressure), wetting and
-        non-wetting outflow rates m³/s, cumulative events and solves, relative mass balance error,
-        number of full pores. Plotted against ``sw`` it is the dynamic Pc–S curve (viscous pressure
-        drops included), next to the quasi-static one of
-        :func:`~porefsi.flow.invasion.invasion_percolation`.
-        ``mass_balance_error`` is ``|V_in + V_def - V_stored - V_out,n| / (V_in + |V_def|)`` after
-        the event, with ``V_in`` the prescribed ``Q t`` at constant rate (the integrated computed
-        inflow at constant inlet pressure, where it checks the bookkeeping only) and ``V_def`` the
-        volume booked by :meth:`DrainageSimulator.with_network` / ``remap``;
-        ``injected_m3`` is ``V_in``.
-    snapshots : list of FlowState
-        States at the requested ``times`` (and at the end).
-    invasion_time : ndarray, shape (Np,)
-        Time each pore became fully non-wetting, s (NaN if never).
-    breakthrough_time, breakthrough_sw : float
-        Breakthrough time s and wetting saturation then (NaN if no breakthrough).
-    final : FlowState
-    counters : dict
-        Events, solves, jumps, skipped solves, active-set statistics.
-    n_dropped : int
-        Pores dropped as not connecting the two faces.
-    seconds : float
-        Wall time of the run, s.
-    """
-
-    history: dict
-    snapshots: list
-    invasion_time: np.ndarray
-    breakthrough_time: float
-    breakthrough_sw: float
-    final: FlowState
-    counters: dict
-    n_dropped: int
-    seconds: float
-
-    @property
-    def mass_balance_error(self) -> float:
-        """Largest relative mass balance error over all events (see ``history``; against Q t at constant rate)."""
-        m = self.history["mass_balance_error"]
-        return float(m.max()) if m.size else 0.0
-
-
 def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: float = PAPER_RATE,
                       t_end: float = PAPER_T_END, times=None, axis="x", inlet_pressure: float | None = None,
-                      stop_at_breakthrough: bool = False, **options) -> DrainageResult:
+                      stop_at_breakthrough: bool = False, checkpoint=None, checkpoint_every: float = 60.0,
+                      resume: bool = False, progress=None, **options) -> DrainageResult:
     """Run a drainage from t = 0 to ``t_end`` and collect the time series and snapshots.
 
     Parameters
@@ -476,29 +426,82 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
         Snapshot times, s, within (0, t_end]; the final state is always included.
     stop_at_breakthrough : bool
         Stop at the first breakthrough instead of ``t_end``.
+    checkpoint : str or Path, optional
+        File the run is saved to, between two events, every ``checkpoint_every`` seconds of wall
+        time and at the end (atomically: a killed run leaves the previous checkpoint intact).
+    checkpoint_every : float
+        Wall seconds between checkpoints (default 60).
+    resume : bool
+        Continue from ``checkpoint`` (written by a run with the same arguments) instead of
+        starting at t = 0. The resumed run repeats the uninterrupted run's arithmetic: its result
+        is the same to the last bit ('direct' and 'lowrank' solvers; the 'amg' hierarchy is
+        rebuilt, so it agrees to the solver tolerance). ``seconds`` counts all processes.
+    progress : callable, optional
+        Called as ``progress(sim, seconds)`` after each checkpoint (e.g. to print a progress line).
     **options
         ``solver``, ``skip_solves``, ``max_active_set_iter`` (see :class:`DrainageSimulator`).
 
     Returns
     -------
     DrainageResult
+
+    Raises
+    ------
+    InputError
+        Bad times or rates; ``resume`` without a checkpoint or with one of another run.
     """
     t_end = _positive("t_end", t_end, "s")
     ts = np.unique(np.asarray([] if times is None else times, dtype=float).ravel())
     if ts.size and (not np.all(np.isfinite(ts)) or ts[0] <= 0 or ts[-1] > t_end):
         raise InputError(f"snapshot times must lie in (0, t_end={t_end:g}] s, got {ts.min():g}..{ts.max():g}")
+    if resume and checkpoint is None:
+        raise InputError("resume=True needs the checkpoint file to resume from (checkpoint=...)")
+    every = _positive("checkpoint_every", checkpoint_every, "s")
     t0 = _time.perf_counter()
-    sim = DrainageSimulator(net, fluids, rate=rate, inlet_pressure=inlet_pressure, axis=axis, **options)
-    snaps = []
-    for t in ts:
-        st = sim.advance_to(t, stop_at_breakthrough=stop_at_breakthrough)
-        if stop_at_breakthrough and not np.isnan(sim.breakthrough_time):
-            break
-        snaps.append(st)
-    final = sim.advance_to(t_end, stop_at_breakthrough=stop_at_breakthrough)
+    key = None
+    if checkpoint is not None:
+        settings = dict(rate=rate, t_end=t_end, times=tuple(ts.tolist()), axis=axis_index(axis),
+                        inlet_pressure=inlet_pressure, stop_at_breakthrough=bool(stop_at_breakthrough),
+                        options=tuple(sorted(options.items())))
+        key = _ckpt.fingerprint(net, fluids, settings)
+    if resume:
+        d = _ckpt.load(checkpoint, key)
+        sim, snaps, k, before = d["sim"], d["snaps"], d["k"], d["seconds"]
+    else:
+        sim = DrainageSimulator(net, fluids, rate=rate, inlet_pressure=inlet_pressure, axis=axis, **options)
+        snaps, k, before = [], 0, 0.0
+    e = sim._engine
+    targets = [*ts.tolist(), t_end]
+    last = _time.perf_counter()
+
+    def save():
+        nonlocal last
+        secs = before + _time.perf_counter() - t0
+        _ckpt.save(checkpoint, key, dict(sim=sim, snaps=snaps, k=k, seconds=secs))
+        last = _time.perf_counter()
+        if progress is not None:
+            progress(sim, secs)
+
+    stopped = False
+    while k < len(targets):
+        t = targets[k]
+        while e.t < t and not stopped:
+            e.step(t)
+            stopped = stop_at_breakthrough and not np.isnan(e.t_breakthrough)
+            if checkpoint is not None and _time.perf_counter() - last >= every:
+                save()
+        if k < len(ts):  # a snapshot time (at breakthrough, when stopping there, the final state only)
+            if stopped:
+                k = len(ts)
+                continue
+            snaps.append(sim.state)
+        k += 1
+    final = sim.state
     if not snaps or snaps[-1].t != final.t:
         snaps.append(final)
-    seconds = _time.perf_counter() - t0
+    if checkpoint is not None:
+        save()
+    seconds = before + _time.perf_counter() - t0
     return DrainageResult(
         history=sim.history(), snapshots=snaps, invasion_time=sim.invasion_time(),
         breakthrough_time=sim.breakthrough_time, breakthrough_sw=sim._engine.sw_breakthrough, final=final,

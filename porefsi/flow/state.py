@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["FlowState", "PORE_EMPTY", "PORE_FILLING", "PORE_FULL", "PORE_TRAPPED", "PORE_DROPPED",
+__all__ = ["FlowState", "DrainageResult", "PORE_EMPTY", "PORE_FILLING", "PORE_FULL", "PORE_TRAPPED", "PORE_DROPPED",
            "THROAT_WETTING", "THROAT_MENISCUS", "THROAT_PINNED", "THROAT_NONWETTING", "THROAT_TRAPPED",
            "THROAT_DROPPED"]
 
@@ -105,3 +105,55 @@ class FlowState:
             return 0.0
         num = self.injected_volume + self.deformation_volume - self.stored_nw_volume - self.nw_outflow_volume
         return abs(num) / den
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DrainageResult:
+    """Outcome of :func:`porefsi.flow.drainage.simulate_drainage`.
+
+    Attributes
+    ----------
+    history : dict of str to ndarray
+        Time series, one row per event (:data:`porefsi.flow.drainage.HISTORY_COLUMNS`): time s,
+        injected volume m³, wetting saturation, inlet pressure Pa (NaN for events whose solve was skipped), capillary
+        pressure Pa (``capillary_pressure_pa``: inlet minus outlet node pressure; the outlet is at
+        :data:`porefsi.flow.drainage.OUTLET_PRESSURE` = 0 by construction, so it equals the inlet pressure), wetting and
+        non-wetting outflow rates m³/s, cumulative events and solves, relative mass balance error,
+        number of full pores. Plotted against ``sw`` it is the dynamic Pc–S curve (viscous pressure
+        drops included), next to the quasi-static one of
+        :func:`~porefsi.flow.invasion.invasion_percolation`.
+        ``mass_balance_error`` is ``|V_in + V_def - V_stored - V_out,n| / (V_in + |V_def|)`` after
+        the event, with ``V_in`` the prescribed ``Q t`` at constant rate (the integrated computed
+        inflow at constant inlet pressure, where it checks the bookkeeping only) and ``V_def`` the
+        volume booked by :meth:`porefsi.flow.drainage.DrainageSimulator.with_network` / ``remap``;
+        ``injected_m3`` is ``V_in``.
+    snapshots : list of FlowState
+        States at the requested ``times`` (and at the end).
+    invasion_time : ndarray, shape (Np,)
+        Time each pore became fully non-wetting, s (NaN if never).
+    breakthrough_time, breakthrough_sw : float
+        Breakthrough time s and wetting saturation then (NaN if no breakthrough).
+    final : FlowState
+    counters : dict
+        Events, solves, jumps, skipped solves, active-set statistics.
+    n_dropped : int
+        Pores dropped as not connecting the two faces.
+    seconds : float
+        Wall time of the run, s.
+    """
+
+    history: dict
+    snapshots: list
+    invasion_time: np.ndarray
+    breakthrough_time: float
+    breakthrough_sw: float
+    final: FlowState
+    counters: dict
+    n_dropped: int
+    seconds: float
+
+    @property
+    def mass_balance_error(self) -> float:
+        """Largest relative mass balance error over all events (see ``history``; against Q t at constant rate)."""
+        m = self.history["mass_balance_error"]
+        return float(m.max()) if m.size else 0.0

@@ -1,0 +1,145 @@
+"""Checkpoints of a drainage run: a killed run resumes to the uninterrupted run's result, bit for bit."""
+
+import json
+import pickle
+
+import numpy as np
+import pytest
+
+from porefsi.cli import main
+from porefsi.errors import InputError
+from porefsi.flow import _drainage_checkpoint as ckpt
+from porefsi.flow.drainage import simulate_drainage
+from porefsi.flow.fluids import Fluids
+from porefsi.network.lattice import lattice_network
+
+convert = pytest.importorskip("porefsi.network.convert")
+
+
+class _KilledError(Exception):
+    """Stands in for the process being killed right after a checkpoint."""
+
+
+def _rate_for_ca(net, fl, ca):
+    ext = net.extent
+    return ca * fl.sigma * float(ext[1] * ext[2]) / fl.mu_n
+
+
+def _killer(after):
+    calls = []
+
+    def progress(sim, seconds):
+        calls.append(seconds)
+        if len(calls) == after:
+            raise _KilledError
+
+    return progress
+
+
+@pytest.fixture(scope="module")
+def case():
+    net = lattice_network((10, 7, 6), 1e-4, np.random.default_rng(3))
+    fl = Fluids()
+    rate = _rate_for_ca(net, fl, 1e-6)
+    ref = simulate_drainage(net, fl, rate=rate, t_end=1e9, stop_at_breakthrough=True)
+    t_end = 1.5 * ref.breakthrough_time  # past breakthrough: outflow of both fluids
+    return net, fl, rate, t_end
+
+
+@pytest.mark.parametrize("solver", ["direct", "lowrank"])
+def test_resumed_run_equals_uninterrupted_bit_for_bit(case, tmp_path, solver):
+    net, fl, rate, t_end = case
+    kw = dict(rate=rate, t_end=t_end, times=[0.3 * t_end, 0.6 * t_end], solver=solver)
+    ref = simulate_drainage(net, fl, **kw)
+    path = tmp_path / "run.pkl"
+    with pytest.raises(_KilledError):  # checkpoint after every event; killed after the 120th
+        simulate_drainage(net, fl, checkpoint=path, checkpoint_every=1e-12, progress=_killer(120), **kw)
+    with open(path, "rb") as f:
+        saved = pickle.load(f)
+    so = saved["sim"]._engine.solver
+    assert so.method == solver and saved["sim"]._engine.n_events == 120
+    if solver == "lowrank":  # the base factorisation travels as its recipe (values + column batches)
+        assert so._saved_base is not None and len(so._saved_base["batches"]) > 0
+    res = simulate_drainage(net, fl, checkpoint=path, resume=True, **kw)
+    for k, v in ref.history.items():
+        np.testing.assert_array_equal(res.history[k], v, err_msg=k)
+    np.testing.assert_array_equal(res.invasion_time, ref.invasion_time)
+    assert len(res.snapshots) == len(ref.snapshots) == 3
+    for a, b in zip(res.snapshots, ref.snapshots, strict=True):
+        assert a.t == b.t
+        np.testing.assert_array_equal(a.pressure, b.pressure)
+        np.testing.assert_array_equal(a.nw_saturation, b.nw_saturation)
+    assert res.counters == ref.counters
+    assert res.breakthrough_time == ref.breakthrough_time and res.final.sw == ref.final.sw
+    assert res.seconds >= saved["seconds"]  # all processes counted
+
+
+def test_stop_at_breakthrough_stops_at_the_breakthrough_event(case):
+    net, fl, rate, t_end = case
+    res = simulate_drainage(net, fl, rate=rate, t_end=t_end, times=[0.1 * t_end, 0.9 * t_end],
+                            stop_at_breakthrough=True)
+    assert res.final.t == res.breakthrough_time  # not one event later
+    assert [s.t for s in res.snapshots] == [0.1 * t_end, res.breakthrough_time]
+
+
+def test_resume_refuses_missing_corrupt_and_foreign_checkpoints(case, tmp_path):
+    net, fl, rate, t_end = case
+    path = tmp_path / "run.pkl"
+    with pytest.raises(InputError, match="no drainage checkpoint"):
+        simulate_drainage(net, fl, rate=rate, t_end=t_end, checkpoint=path, resume=True)
+    with pytest.raises(InputError, match="needs the checkpoint file"):
+        simulate_drainage(net, fl, rate=rate, t_end=t_end, resume=True)
+    with pytest.raises(_KilledError):
+        simulate_drainage(net, fl, rate=rate, t_end=t_end, checkpoint=path, checkpoint_every=1e-12,
+                          progress=_killer(5))
+    for other in (dict(rate=2 * rate, t_end=t_end), dict(rate=rate, t_end=2 * t_end),
+                  dict(rate=rate, t_end=t_end, solver="direct")):
+        with pytest.raises(InputError, match="different run"):
+            simulate_drainage(net, fl, checkpoint=path, resume=True, **other)
+    with pytest.raises(InputError, match="different run"):
+        simulate_drainage(net, Fluids(mu_n=2e-2), rate=rate, t_end=t_end, checkpoint=path, resume=True)
+    path.write_bytes(b"not a pickle")
+    with pytest.raises(InputError, match="not a readable drainage checkpoint"):
+        simulate_drainage(net, fl, rate=rate, t_end=t_end, checkpoint=path, resume=True)
+    with pytest.raises(InputError, match="checkpoint_every"):
+        simulate_drainage(net, fl, rate=rate, t_end=t_end, checkpoint=path, checkpoint_every=0)
+
+
+def test_a_failed_checkpoint_write_keeps_the_previous_one(tmp_path, monkeypatch):
+    path = tmp_path / "c.pkl"
+    ckpt.save(path, "k", {"x": 1})
+
+    def broken(obj, f, protocol=None):
+        f.write(b"partial")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(ckpt.pickle, "dump", broken)
+    with pytest.raises(OSError):
+        ckpt.save(path, "k", {"x": 2})
+    monkeypatch.undo()
+    assert ckpt.load(path, "k")["x"] == 1
+
+
+def test_cli_drainage_checkpoints_and_resumes(tmp_path, capsys):
+    net = lattice_network((6, 5, 3), 1e-4, np.random.default_rng(0))
+    path = convert.save_network(net, tmp_path / "net.npz")
+    out = tmp_path / "out"
+    argv = ["drainage", str(path), "--rate", "1e-12", "--t-end", "20", "-o", str(out), "--json",
+            "--checkpoint-every", "1e-9"]
+    assert main(argv) == 0
+    cap = capsys.readouterr()
+    first = json.loads(cap.out)
+    assert "checkpoint saved" in cap.err and (out / "drainage_checkpoint.pkl").is_file()
+    csv = (out / "drainage.csv").read_text()
+    (out / "drainage.csv").unlink()
+    assert main([*argv, "--resume"]) == 0  # from the final checkpoint: the same outputs again
+    again = json.loads(capsys.readouterr().out)
+    assert (out / "drainage.csv").read_text() == csv
+    for k in ("n_events", "n_solves", "final_sw", "breakthrough_time_s", "mass_balance_error"):
+        assert again[k] == first[k]
+    code = main(["drainage", str(path), "--rate", "2e-12", "--t-end", "20", "-o", str(out), "--resume"])
+    assert code == 2 and "different run" in capsys.readouterr().err
+    code = main(["drainage", str(path), "-o", str(tmp_path / "empty"), "--resume"])
+    assert code == 2 and "no drainage checkpoint" in capsys.readouterr().err
+    code = main(["drainage", str(path), "--resume"])
+    assert code == 2 and "needs -o DIR" in capsys.readouterr().err
