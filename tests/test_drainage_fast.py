@@ -148,3 +148,29 @@ def test_prefetch_cannot_overflow_the_cache_at_constant_pressure():
     _same_drainage(runs)
     # without refactorisations forced by round-off, prefetching leaves the factorisation schedule alone
     assert runs[1].counters["n_solver_setups"] == runs[2].counters["n_solver_setups"] > 1
+
+
+def test_two_thread_column_batches_give_the_one_cpu_answer(rng, monkeypatch):
+    # large batches of base columns are split in halves (two threads when there are two CPUs);
+    # the split is the same with one CPU, so the answer does not depend on the machine
+    from porefsi.flow import _drainage_solver as ds
+
+    net = lattice_network((14, 10, 8), SPACING, rng)
+    fl = Fluids()
+    rate = _rate_for_ca(net, fl, 1e-6)
+    sizes = []
+    solve_columns = ds._solve_columns
+
+    def spy(base, nodes):
+        sizes.append(nodes.size)
+        return solve_columns(base, nodes)
+
+    monkeypatch.setattr(ds, "_solve_columns", spy)
+    runs = []
+    for pool in (ds._pool(), None):
+        monkeypatch.setattr(ds, "_POOL", [pool])
+        runs.append(_run(net, fl, rate, prefetch=True))
+    assert max(sizes) >= ds._SPLIT_COLUMNS  # split batches were exercised
+    h0, h1 = runs[0].history(), runs[1].history()
+    for k in h0:
+        np.testing.assert_array_equal(h0[k], h1[k], err_msg=k)
