@@ -143,3 +143,40 @@ def test_cli_drainage_checkpoints_and_resumes(tmp_path, capsys):
     assert code == 2 and "no drainage checkpoint" in capsys.readouterr().err
     code = main(["drainage", str(path), "--resume"])
     assert code == 2 and "needs -o DIR" in capsys.readouterr().err
+
+
+def test_cli_run_killed_with_sigkill_resumes_to_the_uninterrupted_outputs(tmp_path):
+    # a real kill (no chance to clean up) during the run: the atomic checkpoint survives and the
+    # resumed run writes the very files of a run that was never interrupted
+    import subprocess
+    import sys
+    import time
+
+    net = lattice_network((24, 12, 10), 1e-4, np.random.default_rng(5))
+    path = convert.save_network(net, tmp_path / "net.npz")
+
+    def cmd(out, *extra):
+        return [sys.executable, "-m", "porefsi", "drainage", str(path), "--rate", "1e-12", "--t-end", "200",
+                "-o", str(out), "--json", "--snapshots", "3", *extra]
+
+    ref = subprocess.run(cmd(tmp_path / "ref"), capture_output=True, text=True, check=True)
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(cmd(out, "--checkpoint-every", "0.05"), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    ck_file = out / "drainage_checkpoint.pkl"
+    deadline = time.monotonic() + 120
+    while not ck_file.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    proc.kill()
+    proc.wait()
+    if proc.returncode == 0:
+        pytest.skip("the run finished before it could be killed")
+    with open(ck_file, "rb") as f:
+        events_at_kill = pickle.load(f)["sim"]._engine.n_events
+    res = subprocess.run(cmd(out, "--resume"), capture_output=True, text=True, check=True)
+    first, again = json.loads(ref.stdout), json.loads(res.stdout)
+    assert events_at_kill < first["n_events"]
+    for k in ("n_events", "n_solves", "final_sw", "breakthrough_time_s", "mass_balance_error"):
+        assert again[k] == first[k]
+    for name in ("drainage.csv", "invasion.csv", *(f"snapshot_{i}.csv" for i in range(3))):
+        assert (out / name).read_text() == (tmp_path / "ref" / name).read_text(), name
