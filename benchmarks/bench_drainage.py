@@ -14,6 +14,12 @@ trapping on the same network (at these capillary numbers it breaks through after
 of fills to within a few: 10k lattice 1992 vs 1990), and the projected time assumes the measured
 seconds per fill stay constant (the factor of the pressure matrix shrinks as pores fill, so this
 errs on the long side).
+
+Peers (when ``openpnm`` is importable, e.g. ``tox -e bench``): no open tool runs a dynamic
+drainage, so the line ends with the cost of the quasi-static reference on the same network,
+measured in the same run: porefsi's invasion percolation with trapping to breakthrough and
+OpenPNM's ``InvasionPercolation`` (whole network, without trapping) with ``apply_trapping``, and
+the ratios of the dynamic run to both (``--no-peers`` leaves them out).
 """
 
 import argparse
@@ -40,10 +46,15 @@ def main(argv=None):
     p.add_argument("--solver", default="auto")
     p.add_argument("--max-seconds", type=float, default=np.inf)
     p.add_argument("--no-prefetch", action="store_true", help="compute base columns only when needed")
+    p.add_argument("--no-peers", action="store_true", help="skip the quasi-static reference timings")
     args = p.parse_args(argv)
     fl = Fluids()
     # warm the numba caches outside the timing
-    DrainageSimulator(lattice_network((3, 3, 2), 4e-5, np.random.default_rng(0)), fl).advance_to(1e3, True)
+    warm = lattice_network((3, 3, 2), 4e-5, np.random.default_rng(0))
+    DrainageSimulator(warm, fl).advance_to(1e3, True)
+    if not args.no_peers:  # and OpenPNM's (imports, numba compilation)
+        invasion_percolation(warm, fl, axis="x", stop_at_breakthrough=True)
+        _openpnm_ip(warm, fl)
     for n in args.sizes:
         shape = SHAPES[n]
         net = lattice_network(shape, 4e-5, np.random.default_rng(7))
@@ -71,11 +82,56 @@ def main(argv=None):
               f"  refinements={c['cg_iterations']}  "
               f"t={e.t:.4g} s  Sw={st.sw:.3f}  mass_err={st.mass_balance_error:.1e}  seconds={dt:.2f}  "
               f"events/s={c['n_events'] / dt:.1f}", flush=True)
+        dpn = dt
         if not done and c["n_fills"] > 0:
             need = invasion_percolation(net, fl, axis="x", stop_at_breakthrough=True).breakthrough_step + 1
             per_fill = dt / c["n_fills"]
+            dpn = need * per_fill
             print(f"{'':>7s}        projection: ~{need} fills to breakthrough (invasion percolation), "
-                  f"{per_fill:.3f} s per fill so far -> ~{need * per_fill / 3600:.1f} h", flush=True)
+                  f"{per_fill:.3f} s per fill so far -> ~{dpn / 3600:.1f} h", flush=True)
+        if not args.no_peers:
+            _peers(net, fl, dpn if done or c["n_fills"] > 0 else np.nan, projected=not done)
+
+
+def _peers(net, fl, dpn_seconds, projected=False):
+    """Print the quasi-static references' seconds (porefsi IP, OpenPNM IP) and the DPN's ratios to them."""
+    t0 = time.perf_counter()
+    ip = invasion_percolation(net, fl, axis="x", stop_at_breakthrough=True)
+    t_ip = time.perf_counter() - t0
+    line = (f"{'':>7s}        quasi-static: porefsi IP+trapping to breakthrough {t_ip:.2f} s "
+            f"({ip.breakthrough_step + 1} fills)")
+    t_op, version = _openpnm_ip(net, fl)
+    if t_op is None:
+        print(line + "; openpnm not installed", flush=True)
+        return
+    dpn = "projected DPN" if projected else "DPN"
+    print(line + f"; OpenPNM {version} InvasionPercolation + apply_trapping (whole network) "
+          f"{t_op:.2f} s; {dpn} / porefsi IP = {dpn_seconds / t_ip:.0f}x, {dpn} / OpenPNM IP = "
+          f"{dpn_seconds / t_op:.1f}x, porefsi IP / OpenPNM IP = {t_ip / t_op:.2f}", flush=True)
+
+
+def _openpnm_ip(net, fl):
+    """Seconds of OpenPNM's IP + apply_trapping with porefsi's thresholds and a virtual inlet pore."""
+    try:
+        import openpnm as op
+    except ImportError:
+        return None, None
+    n = net.n_pores
+    inlet = np.flatnonzero(net.inlet("x"))
+    c = net.throat_conns
+    pcb = fl.capillary_pressure(net.pore_radius)
+    thr = np.maximum(fl.capillary_pressure(net.throat_radius), np.maximum(pcb[c[:, 0]], pcb[c[:, 1]]))
+    t0 = time.perf_counter()
+    pn = op.network.Network(coords=np.vstack([net.pore_coords, [[-1.0, 0.0, 0.0]]]),
+                            conns=np.vstack([c, np.column_stack([np.full(inlet.size, n), inlet])]))
+    phase = op.phase.Phase(network=pn)
+    phase["throat.entry_pressure"] = np.concatenate([thr, pcb[inlet]])
+    alg = op.algorithms.InvasionPercolation(network=pn, phase=phase)
+    alg.set_inlet_BC(pores=[n])
+    alg.set_outlet_BC(pores=np.flatnonzero(net.outlet("x")))
+    alg.run()
+    alg.apply_trapping()
+    return time.perf_counter() - t0, op.__version__
 
 
 if __name__ == "__main__":
