@@ -180,3 +180,64 @@ def test_cli_run_killed_with_sigkill_resumes_to_the_uninterrupted_outputs(tmp_pa
         assert again[k] == first[k]
     for name in ("drainage.csv", "invasion.csv", *(f"snapshot_{i}.csv" for i in range(3))):
         assert (out / name).read_text() == (tmp_path / "ref" / name).read_text(), name
+
+
+def test_ctrl_c_saves_at_the_end_of_the_event_and_resumes_bit_for_bit(case, tmp_path, monkeypatch):
+    import os
+    import signal
+
+    from porefsi.flow._drainage_engine import Engine
+
+    net, fl, rate, t_end = case
+    kw = dict(rate=rate, t_end=t_end, solver="lowrank")
+    ref = simulate_drainage(net, fl, **kw)
+    path = tmp_path / "run.pkl"
+    step = Engine.step
+
+    def step_with_ctrl_c(self, t_target):  # Ctrl-C arrives during the 50th event
+        if self.n_events == 49:
+            os.kill(os.getpid(), signal.SIGINT)
+        return step(self, t_target)
+
+    monkeypatch.setattr(Engine, "step", step_with_ctrl_c)
+    before = signal.getsignal(signal.SIGINT)
+    with pytest.raises(KeyboardInterrupt, match="saved to"):  # no periodic checkpoint: the Ctrl-C's
+        simulate_drainage(net, fl, checkpoint=path, checkpoint_every=1e9, **kw)
+    assert signal.getsignal(signal.SIGINT) is before  # the handler is restored
+    monkeypatch.undo()
+    with open(path, "rb") as f:
+        saved = pickle.load(f)
+    assert saved["sim"]._engine.n_events == 50  # the event in progress finished, then saved
+    res = simulate_drainage(net, fl, checkpoint=path, resume=True, **kw)
+    for k, v in ref.history.items():
+        np.testing.assert_array_equal(res.history[k], v, err_msg=k)
+
+
+def test_cli_ctrl_c_saves_and_says_how_to_resume(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from porefsi.cli import EXIT_INTERRUPTED
+
+    net = lattice_network((24, 12, 10), 1e-4, np.random.default_rng(5))
+    path = convert.save_network(net, tmp_path / "net.npz")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "porefsi", "drainage", str(path), "--rate", "1e-12", "--t-end", "200",
+           "-o", str(out), "--json", "--checkpoint-every", "0.05"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (out / "drainage_checkpoint.pkl").exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate()
+    if proc.returncode == 0:
+        pytest.skip("the run finished before Ctrl-C arrived")
+    assert proc.returncode == EXIT_INTERRUPTED
+    assert "porefsi: interrupted: drainage interrupted at t =" in err and "--resume" in err
+    res = subprocess.run([*cmd, "--resume"], capture_output=True, text=True, check=True)
+    ref = subprocess.run([*cmd[:-5], "-o", str(tmp_path / "ref"), "--json"], capture_output=True, text=True,
+                         check=True)
+    assert (out / "drainage.csv").read_text() == (tmp_path / "ref" / "drainage.csv").read_text()
+    assert json.loads(res.stdout)["n_events"] == json.loads(ref.stdout)["n_events"]

@@ -83,8 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     except PorefsiError as exc:
         print(f"porefsi: error: {exc}", file=sys.stderr)
         return EXIT_ERROR
-    except KeyboardInterrupt:
-        print("porefsi: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # a run that saved itself says where and how to continue
+        print(f"porefsi: interrupted{f': {exc}' if str(exc) else ''}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early: not an error of ours
         devnull = os.open(os.devnull, os.O_WRONLY)

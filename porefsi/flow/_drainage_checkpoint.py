@@ -9,17 +9,20 @@ checkpoint of a different run.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import os
 import pickle
+import signal
+import threading
 from pathlib import Path
 
 import numpy as np
 
 from porefsi.errors import InputError
 
-__all__ = ["fingerprint", "save", "load", "FORMAT"]
+__all__ = ["fingerprint", "save", "load", "deferred_interrupt", "FORMAT"]
 
 #: Layout version of the checkpoint payload.
 FORMAT = 1
@@ -79,3 +82,30 @@ def load(path: str | Path, key: str) -> dict:
                          "rate, axis, times or solver options differ); repeat the original command with "
                          "--resume, or run without --resume to start over")
     return d
+
+
+@contextlib.contextmanager
+def deferred_interrupt(enabled: bool = True):
+    """Defer the first Ctrl-C (SIGINT) to the caller's next safe point; yield a "was it pressed" test.
+
+    The caller polls the yielded function between events, saves a checkpoint when it returns True
+    and raises :class:`KeyboardInterrupt` itself, so an interrupted run loses no finished event.
+    The first Ctrl-C restores the previous handler: a second one interrupts at once (an event that
+    takes long, e.g. a factorisation). Outside the main thread, or with ``enabled`` False, nothing
+    is installed and the test is always False.
+    """
+    hit = [False]
+    if not enabled or threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum, frame):
+        hit[0] = True
+        signal.signal(signal.SIGINT, previous)
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: hit[0]
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -438,6 +438,9 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
         rebuilt, so it agrees to the solver tolerance). ``seconds`` counts all processes.
     progress : callable, optional
         Called as ``progress(sim, seconds)`` after each checkpoint (e.g. to print a progress line).
+        With a checkpoint, the first Ctrl-C (SIGINT, main thread) is deferred to the end of the
+        current event: the run is saved there and :class:`KeyboardInterrupt` raised (a second
+        Ctrl-C interrupts at once).
     **options
         ``solver``, ``skip_solves``, ``max_active_set_iter`` (see :class:`DrainageSimulator`).
 
@@ -483,19 +486,23 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
             progress(sim, secs)
 
     stopped = False
-    while k < len(targets):
-        t = targets[k]
-        while e.t < t and not stopped:
-            e.step(t)
-            stopped = stop_at_breakthrough and not np.isnan(e.t_breakthrough)
-            if checkpoint is not None and _time.perf_counter() - last >= every:
-                save()
-        if k < len(ts):  # a snapshot time (at breakthrough, when stopping there, the final state only)
-            if stopped:
-                k = len(ts)
-                continue
-            snaps.append(sim.state)
-        k += 1
+    with _ckpt.deferred_interrupt(checkpoint is not None) as interrupted:  # Ctrl-C: save, then stop
+        while k < len(targets):
+            t = targets[k]
+            while e.t < t and not stopped:
+                e.step(t)
+                stopped = stop_at_breakthrough and not np.isnan(e.t_breakthrough)
+                if checkpoint is not None and (interrupted() or _time.perf_counter() - last >= every):
+                    save()
+                    if interrupted():
+                        raise KeyboardInterrupt(f"drainage interrupted at t = {e.t:.6g} s; saved to {checkpoint}: "
+                                                "continue with resume=True (command line: --resume)")
+            if k < len(ts):  # a snapshot time (at breakthrough, when stopping there, the final state only)
+                if stopped:
+                    k = len(ts)
+                    continue
+                snaps.append(sim.state)
+            k += 1
     final = sim.state
     if not snaps or snaps[-1].t != final.t:
         snaps.append(final)
