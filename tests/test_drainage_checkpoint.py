@@ -101,6 +101,10 @@ def test_resume_refuses_missing_corrupt_and_foreign_checkpoints(case, tmp_path):
     path.write_bytes(b"not a pickle")
     with pytest.raises(InputError, match="not a readable drainage checkpoint"):
         simulate_drainage(net, fl, rate=rate, t_end=t_end, checkpoint=path, resume=True)
+    with pytest.raises(InputError, match="needs a porefsi Network and Fluids"):
+        simulate_drainage("net.npz", fl, rate=rate, checkpoint=path)
+    with pytest.raises(InputError, match="needs a porefsi Network and Fluids"):
+        simulate_drainage(net, {"sigma": 0.03}, rate=rate, checkpoint=path)
     with pytest.raises(InputError, match="checkpoint_every"):
         simulate_drainage(net, fl, rate=rate, t_end=t_end, checkpoint=path, checkpoint_every=0)
 

@@ -429,6 +429,9 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
     checkpoint : str or Path, optional
         File the run is saved to, between two events, every ``checkpoint_every`` seconds of wall
         time and at the end (atomically: a killed run leaves the previous checkpoint intact).
+        The first Ctrl-C (SIGINT, main thread) is then deferred to the end of the current event:
+        the run is saved there and :class:`KeyboardInterrupt` raised (a second Ctrl-C interrupts
+        at once).
     checkpoint_every : float
         Wall seconds between checkpoints (default 60).
     resume : bool
@@ -438,9 +441,6 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
         rebuilt, so it agrees to the solver tolerance). ``seconds`` counts all processes.
     progress : callable, optional
         Called as ``progress(sim, seconds)`` after each checkpoint (e.g. to print a progress line).
-        With a checkpoint, the first Ctrl-C (SIGINT, main thread) is deferred to the end of the
-        current event: the run is saved there and :class:`KeyboardInterrupt` raised (a second
-        Ctrl-C interrupts at once).
     **options
         ``solver``, ``skip_solves``, ``max_active_set_iter`` (see :class:`DrainageSimulator`).
 
@@ -457,6 +457,9 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
     ts = np.unique(np.asarray([] if times is None else times, dtype=float).ravel())
     if ts.size and (not np.all(np.isfinite(ts)) or ts[0] <= 0 or ts[-1] > t_end):
         raise InputError(f"snapshot times must lie in (0, t_end={t_end:g}] s, got {ts.min():g}..{ts.max():g}")
+    if not isinstance(net, Network) or not isinstance(fluids, Fluids):
+        raise InputError(f"simulate_drainage needs a porefsi Network and Fluids, got {type(net).__name__} and "
+                         f"{type(fluids).__name__}")
     if resume and checkpoint is None:
         raise InputError("resume=True needs the checkpoint file to resume from (checkpoint=...)")
     every = _positive("checkpoint_every", checkpoint_every, "s")
