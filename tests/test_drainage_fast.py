@@ -167,10 +167,44 @@ def test_two_thread_column_batches_give_the_one_cpu_answer(rng, monkeypatch):
 
     monkeypatch.setattr(ds, "_solve_columns", spy)
     runs = []
+    import os
+
     for pool in (ds._pool(), None):
-        monkeypatch.setattr(ds, "_POOL", [pool])
+        monkeypatch.setattr(ds, "_POOL", {os.getpid(): pool})
         runs.append(_run(net, fl, rate, prefetch=True))
     assert max(sizes) >= ds._SPLIT_COLUMNS  # split batches were exercised
     h0, h1 = runs[0].history(), runs[1].history()
     for k in h0:
         np.testing.assert_array_equal(h0[k], h1[k], err_msg=k)
+
+
+def test_a_forked_child_gets_its_own_column_worker(rng):
+    # the parent's worker thread does not exist in a forked child: the child builds its own
+    # (a child using the parent's executor would wait forever on its first large batch)
+    import multiprocessing as mp
+    import os
+
+    from porefsi.flow import _drainage_solver as ds
+
+    if "fork" not in mp.get_all_start_methods():
+        pytest.skip("no fork on this platform")
+    parent = ds._pool()
+    if parent is None:
+        pytest.skip("one CPU: no worker thread")
+    net = lattice_network((10, 8, 6), SPACING, rng)
+    fl = Fluids()
+    rate = _rate_for_ca(net, fl, 1e-6)
+    with mp.get_context("fork").Pool(1) as pool:
+        child = pool.apply_async(_child_run, (net, fl, rate))
+        n_events, child_pid_pool = child.get(timeout=120)
+    assert n_events == _run(net, fl, rate, prefetch=True).counters["n_events"]
+    assert child_pid_pool != os.getpid()
+
+
+def _child_run(net, fl, rate):
+    import os
+
+    from porefsi.flow import _drainage_solver as ds
+
+    sim = _run(net, fl, rate, prefetch=True)
+    return sim.counters["n_events"], next(iter(ds._POOL)) if ds._POOL else os.getpid()

@@ -25,7 +25,10 @@ Every event changes a few conductances, so the solver reuses work across events:
   refactorising again would give the same answer). After eight consecutive failed updates the
   solver factorises each matrix directly for the next 64 solves, then tries updates again.
   Right-hand sides with many nonzeros (many active menisci at high Ca) are solved by one base
-  solve instead of through cached columns.
+  solve instead of through cached columns. Batches of 8 or more columns are solved in two
+  halves, on two threads when there are two CPUs (the same halves with one CPU, so the answer
+  is machine independent). Pickled, the base travels as its recipe (its values and its column
+  batches) and is rebuilt identically: a resumed run repeats the uninterrupted one bit for bit.
 * ``'direct'``: a fresh sparse LU per solve (cheapest for a few hundred unknowns), refined like
   the low-rank solves when its residual misses ``rtol``.
 * ``'amg'``: CG preconditioned by a pyamg smoothed-aggregation hierarchy that is reused across
@@ -367,15 +370,17 @@ def _solve_columns(base, nodes):
 
 #: Batches of base columns at least this large are solved on two threads.
 _SPLIT_COLUMNS = 8
-_POOL: list = []
+_POOL: dict = {}  # process id -> executor (a forked child must not use its parent's dead worker)
 
 
 def _pool():
     """A one-worker thread pool for the second half of large column batches (None on one CPU)."""
-    if not _POOL:
+    pid = os.getpid()
+    if pid not in _POOL:
         n_cpu = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-        _POOL.append(ThreadPoolExecutor(1, thread_name_prefix="porefsi-columns") if n_cpu >= 2 else None)
-    return _POOL[0]
+        _POOL.clear()
+        _POOL[pid] = ThreadPoolExecutor(1, thread_name_prefix="porefsi-columns") if n_cpu >= 2 else None
+    return _POOL[pid]
 
 
 def _woodbury(upd, y):
