@@ -245,3 +245,16 @@ def test_cli_ctrl_c_saves_and_says_how_to_resume(tmp_path):
                          check=True)
     assert (out / "drainage.csv").read_text() == (tmp_path / "ref" / "drainage.csv").read_text()
     assert json.loads(res.stdout)["n_events"] == json.loads(ref.stdout)["n_events"]
+
+
+def test_cli_fresh_run_removes_the_outputs_of_an_earlier_run_only(tmp_path, capsys):
+    net = lattice_network((6, 5, 3), 1e-4, np.random.default_rng(0))
+    path = convert.save_network(net, tmp_path / "net.npz")
+    out = tmp_path / "out"
+    assert main(["drainage", str(path), "-o", str(out), "--snapshots", "4"]) == 0
+    assert len(list(out.glob("snapshot_*.csv"))) == 4
+    (out / "notes.txt").write_text("mine")
+    assert main(["drainage", str(path), "-o", str(out), "--snapshots", "2"]) == 0
+    assert sorted(f.name for f in out.glob("snapshot_*.csv")) == ["snapshot_0.csv", "snapshot_1.csv"]
+    assert (out / "notes.txt").read_text() == "mine"
+    capsys.readouterr()

@@ -8,12 +8,14 @@ outlet node pressure, the outlet being at 0 by construction), ``DIR/invasion.csv
 ``DIR/pc_s.png``: the dynamic Pc–S curve next to the quasi-static one (invasion percolation with
 trapping on the same network and fluids). With ``-o DIR`` the run is saved to
 ``DIR/drainage_checkpoint.pkl`` every ``--checkpoint-every`` seconds (a progress line on stderr
-each time); ``--resume`` continues a killed run from it, to the same result bit for bit.
+each time); ``--resume`` continues a killed run from it, to the same result bit for bit. A
+fresh run first removes what an earlier run wrote in DIR (those file names only).
 """
 
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import time
 from pathlib import Path
@@ -81,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
     if args.output:
         out = Path(args.output)
         out.mkdir(parents=True, exist_ok=True)
+        _clear_outputs(out, keep_checkpoint=args.resume)
         ckpt = dict(checkpoint=out / CHECKPOINT, checkpoint_every=args.checkpoint_every, resume=args.resume,
                     progress=_progress(args.t_end))
     t_sim = time.perf_counter()
@@ -112,6 +115,21 @@ def run(args: argparse.Namespace) -> int:
     }
     emit(summary, args.json)
     return 0
+
+
+#: Files this command writes in its output directory (only these are ever removed).
+_OUTPUTS = re.compile(r"(drainage\.csv|invasion\.csv|pc_s\.png|snapshot_\d+\.csv|drainage_checkpoint\.pkl(\.tmp)?)")
+
+
+def _clear_outputs(out: Path, keep_checkpoint: bool) -> None:
+    """Remove the files an earlier run wrote in ``out`` (a resumed run keeps its checkpoint).
+
+    Without this, a run with fewer ``--snapshots`` would leave the earlier run's extra snapshot
+    files next to its own. Files of other names are never touched.
+    """
+    for f in out.iterdir():
+        if f.is_file() and _OUTPUTS.fullmatch(f.name) and not (keep_checkpoint and f.name == CHECKPOINT):
+            f.unlink()
 
 
 def _progress(t_end: float):
