@@ -178,6 +178,7 @@ def test_two_thread_column_batches_give_the_one_cpu_answer(rng, monkeypatch):
         np.testing.assert_array_equal(h0[k], h1[k], err_msg=k)
 
 
+@pytest.mark.filterwarnings("ignore:This process .* is multi-threaded:DeprecationWarning")  # the point here
 def test_a_forked_child_gets_its_own_column_worker(rng):
     # the parent's worker thread does not exist in a forked child: the child builds its own
     # (a child using the parent's executor would wait forever on its first large batch)
