@@ -36,22 +36,9 @@ from porefsi.errors import InputError
 from porefsi.flow import _drainage_checkpoint as _ckpt
 from porefsi.flow._drainage_engine import Engine
 from porefsi.flow._drainage_graph import build_graph
+from porefsi.flow._drainage_state import make_state
 from porefsi.flow.fluids import PAPER_FLUIDS, Fluids
-from porefsi.flow.state import (
-    PORE_DROPPED,
-    PORE_EMPTY,
-    PORE_FILLING,
-    PORE_FULL,
-    PORE_TRAPPED,
-    THROAT_DROPPED,
-    THROAT_MENISCUS,
-    THROAT_NONWETTING,
-    THROAT_PINNED,
-    THROAT_TRAPPED,
-    THROAT_WETTING,
-    DrainageResult,
-    FlowState,
-)
+from porefsi.flow.state import DrainageResult, FlowState
 from porefsi.image.voxel_image import axis_index
 from porefsi.network.network import Network
 
@@ -218,7 +205,7 @@ class DrainageSimulator:
         """The current :class:`FlowState` (solves for the pressure if a skipped solve left it stale)."""
         e = self._engine
         e.ensure_pressure()
-        return _make_state(self, e)
+        return make_state(self.net, self.graph, e)
 
     def with_network(self, net: Network) -> DrainageSimulator:
         """Carry the state onto ``net``: same pores and throats, new radii, lengths and volumes.
@@ -371,43 +358,6 @@ class DrainageSimulator:
         m = g.throat >= 0
         out[g.throat[m]] = self._engine.edge_time[m]
         return out
-
-
-def _make_state(sim: DrainageSimulator, e: Engine) -> FlowState:
-    g = sim.graph
-    n_p, n = sim.net.n_pores, g.n
-    keep = g.keep
-    sat_k = e.vn / g.vol
-    P = np.full(n_p, np.nan)
-    P[keep] = e.P[:n]
-    sat = np.zeros(n_p)
-    sat[keep] = sat_k
-    fp = np.full(n_p, np.nan)
-    filling_k = (sat_k > 0) & ~e.full
-    fp[keep] = e.P[:n] + np.where(filling_k, sat_k * g.pcb[:n], 0.0)
-    ps = np.full(n_p, PORE_DROPPED, dtype=np.int8)
-    pk = np.where(e.full, PORE_FULL, np.where(sat_k > 0, PORE_FILLING, PORE_EMPTY)).astype(np.int8)
-    pk[e.trapped] = PORE_TRAPPED
-    ps[keep] = pk
-    cond, men, fa = e.conductances()
-    fx = e._node_full()
-    fb = fx[g.b]
-    tx = np.concatenate([e.trapped, [False, False]])
-    kind = np.where(fa & fb, THROAT_NONWETTING, np.where(men, THROAT_MENISCUS,
-                    np.where(fa ^ fb, THROAT_PINNED, THROAT_WETTING)))
-    kind[tx[g.a] | tx[g.b]] = THROAT_TRAPPED
-    ts = np.full(sim.net.n_throats, THROAT_DROPPED, dtype=np.int8)
-    inv = np.zeros(sim.net.n_throats, dtype=bool)
-    m = g.throat >= 0
-    ts[g.throat[m]] = kind[m]
-    inv[g.throat[m]] = e.inv[m]
-    return FlowState(
-        t=e.t, pressure=P, fluid_pressure=fp, nw_saturation=sat, pore_state=ps, throat_state=ts,
-        throat_invaded=inv, inlet_pressure=e.inlet_pressure(), injected_volume=e.injected,
-        nw_outflow_volume=e.out_n, w_outflow_volume=e.out_w, deformation_volume=e.deformation,
-        breakthrough_time=e.t_breakthrough, pore_volume_total=float(g.vol.sum()),
-        stored_nw_volume=float(e.vn.sum()),
-    )
 
 
 def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: float = PAPER_RATE,
