@@ -113,11 +113,12 @@ def test_a_failed_checkpoint_write_keeps_the_previous_one(tmp_path, monkeypatch)
     path = tmp_path / "c.pkl"
     ckpt.save(path, "k", {"x": 1})
 
-    def broken(obj, f, protocol=None):
-        f.write(b"partial")
+    from porefsi.io import results
+
+    def broken(fd):  # the new bytes are in the temporary file, then the disk fails
         raise OSError("disk full")
 
-    monkeypatch.setattr(ckpt.pickle, "dump", broken)
+    monkeypatch.setattr(results.os, "fsync", broken)
     with pytest.raises(OSError):
         ckpt.save(path, "k", {"x": 2})
     monkeypatch.undo()

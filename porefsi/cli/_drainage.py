@@ -118,7 +118,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 #: Files this command writes in its output directory (only these are ever removed).
-_OUTPUTS = re.compile(r"(drainage\.csv|invasion\.csv|pc_s\.png|snapshot_\d+\.csv|drainage_checkpoint\.pkl(\.tmp)?)")
+_OUTPUTS = re.compile(r"drainage\.csv|invasion\.csv|pc_s\.png|snapshot_\d+\.csv|drainage_checkpoint\.pkl")
+#: A temporary file of :func:`porefsi.io.results.atomic_write_bytes` that a killed run left.
+_TEMPORARY = re.compile(r"\.(?P<name>.+)\.[^.]+\.tmp")
 
 
 def _clear_outputs(out: Path, keep_checkpoint: bool) -> None:
@@ -128,7 +130,9 @@ def _clear_outputs(out: Path, keep_checkpoint: bool) -> None:
     files next to its own. Files of other names are never touched.
     """
     for f in out.iterdir():
-        if f.is_file() and _OUTPUTS.fullmatch(f.name) and not (keep_checkpoint and f.name == CHECKPOINT):
+        tmp = _TEMPORARY.fullmatch(f.name)
+        name = tmp["name"] if tmp else f.name
+        if f.is_file() and _OUTPUTS.fullmatch(name) and (tmp or not (keep_checkpoint and name == CHECKPOINT)):
             f.unlink()
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import hashlib
-import os
 import pickle
 import signal
 import threading
@@ -21,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from porefsi.errors import InputError
+from porefsi.io.results import atomic_write_bytes
 
 __all__ = ["fingerprint", "save", "load", "deferred_interrupt", "FORMAT"]
 
@@ -46,14 +46,8 @@ def fingerprint(net, fluids, settings: dict) -> str:
 
 def save(path: str | Path, key: str, payload: dict) -> Path:
     """Write ``payload`` with its fingerprint ``key`` to ``path`` atomically; return the path."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        pickle.dump({"format": FORMAT, "key": key, **payload}, f, protocol=pickle.HIGHEST_PROTOCOL)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    return path
+    data = pickle.dumps({"format": FORMAT, "key": key, **payload}, protocol=pickle.HIGHEST_PROTOCOL)
+    return atomic_write_bytes(path, data)
 
 
 def load(path: str | Path, key: str) -> dict:
