@@ -57,8 +57,9 @@ def test_sphere_points_are_uniform(rng):
     the points into 8 x 16 equal-area (z, azimuth) cells. A normalised-cube sampler (uniform in
     [-1, 1]^3, divided by the norm) has moments 0 and 1/3 too, but its coordinates sit a KS
     distance of 0.033 from uniform (measured, 1e6 points), nearly three times the 1e-6-level KS
-    critical value at n = 50 000 (0.012): KS p ~ 1e-47..1e-68 (planted: 1.5e-57) and chi-square ~5300 on 127 degrees
-    of freedom (p = 0), against p = 0.27..0.97 and chi-square 110-131 for this sampler (seeds 0-2).
+    critical value at n = 50 000 (0.012): KS p ~ 1e-47..1e-68 (planted in the library: 1.5e-57)
+    and chi-square ~5300 on 127 degrees of freedom (p = 0), against p = 0.27..0.97 and chi-square
+    110-131 for the Gaussian sampler (seeds 0-2).
     """
     p = sphere_test_points(50_000, rng)
     np.testing.assert_allclose(np.linalg.norm(p, axis=1), 1.0, rtol=1e-14)
