@@ -13,7 +13,7 @@ from porefsi.solid.materials import NeoHookean, StVenantKirchhoff, make_material
 from porefsi.solid.model import SolidModel
 from porefsi.solid.shapes import box_mesh
 from porefsi.solid.static import solve_static
-from tests.reference.solid_ref import assemble_p1_ref, p1_gradients_ref
+from tests.reference.solid_ref import assemble_p1_ref, first_pk_ref, lame_ref, moduli_ref, p1_gradients_ref
 
 MATERIALS = [StVenantKirchhoff(E=20e9, nu=0.28), NeoHookean(E=20e9, nu=0.28)]
 IDS = ["svk", "neo-hookean"]
@@ -48,12 +48,34 @@ def test_stress_and_moduli_are_derivatives(mat, rng):
 
 @pytest.mark.parametrize("mat", MATERIALS, ids=IDS)
 def test_small_strain_limit_is_hooke(mat):
-    """At F = I both materials reduce to isotropic linear elasticity (lambda, mu)."""
+    """At F = I both materials reduce to isotropic linear elasticity with the textbook
+    lambda = E nu / ((1 + nu)(1 - 2 nu)), mu = E / (2 (1 + nu)) (computed here from E, nu)."""
     A = mat.moduli(np.eye(3)[:, :, None])[..., 0]
     d = np.eye(3)
-    C = mat.lam * np.einsum("ij,kl->ijkl", d, d) + mat.mu * (np.einsum("ik,jl->ijkl", d, d)
-                                                             + np.einsum("il,jk->ijkl", d, d))
+    lam, mu = lame_ref(mat.E, mat.nu)
+    assert (mat.lam, mat.mu) == (pytest.approx(lam, rel=1e-15), pytest.approx(mu, rel=1e-15))
+    C = lam * np.einsum("ij,kl->ijkl", d, d) + mu * (np.einsum("ik,jl->ijkl", d, d)
+                                                     + np.einsum("il,jk->ijkl", d, d))
     np.testing.assert_allclose(A, C, rtol=1e-14, atol=1e-14 * mat.E)
+    # E and nu back from uniaxial stress (the normal 3 x 3 block of the Voigt stiffness, inverted):
+    # eps_11 = sigma_11 / E, eps_22 = -nu sigma_11 / E
+    normal = np.linalg.inv(A[[0, 1, 2], [0, 1, 2]][:, [0, 1, 2], [0, 1, 2]])
+    assert 1.0 / normal[0, 0] == pytest.approx(mat.E, rel=1e-12)
+    assert -normal[1, 0] / normal[0, 0] == pytest.approx(mat.nu, rel=1e-12)
+
+
+@pytest.mark.parametrize("mat", MATERIALS, ids=IDS)
+def test_stress_and_moduli_match_textbook_twin(mat, rng):
+    """The library's P(F) and A(F) at finite strain equal the reference laws written from the
+    textbooks (tests/reference/solid_ref.py: own formulas from E and nu, complex-step moduli)."""
+    H = 0.1 * rng.standard_normal((3, 3, 4))
+    F = np.eye(3)[:, :, None] + H
+    P, A = mat.first_pk(F), mat.moduli(F)
+    for q in range(H.shape[2]):
+        P_ref = first_pk_ref(mat.name, mat.E, mat.nu, H[:, :, q])
+        A_ref = moduli_ref(mat.name, mat.E, mat.nu, H[:, :, q])
+        np.testing.assert_allclose(P[:, :, q], P_ref, rtol=0, atol=1e-12 * np.abs(P_ref).max())
+        np.testing.assert_allclose(A[..., q], A_ref, rtol=0, atol=1e-12 * np.abs(A_ref).max())
 
 
 def test_material_validation():
