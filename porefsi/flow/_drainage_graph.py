@@ -5,10 +5,16 @@ the virtual inlet (a reservoir of injected non-wetting fluid) and node ``n + 1``
 outlet (P = 0). Edges are the network's throats between kept pores plus one boundary edge per
 inlet pore ``(n, i)`` and per outlet pore ``(i, n + 1)``.
 
-Boundary edges are conduits through the boundary pore itself: a cylinder of the pore radius whose
-length is the distance from the pore centre to the face, floored at a quarter of the pore radius
-so that a centre on the face keeps a finite conductance. Their entry pressure is the pore-body
-capillary pressure (the face cuts the pore, so no narrower constriction is known).
+Boundary edges are conduits through the boundary pore itself: a duct of the pore's section (a
+cylinder of the pore radius in the paper's model) whose length is the distance from the pore
+centre to the face, floored at a quarter of the pore radius so that a centre on the face keeps a
+finite conductance. Their entry pressure is the pore-body capillary pressure (the face cuts the
+pore, so no narrower constriction is known).
+
+Conductances and entry pressures follow the network's conduit model
+(:attr:`Network.conduit_model`): with ``"shape_factor"`` the throat entry pressures and pore-body
+capillary pressures are the Mayer–Stowe–Princen values of the measured sections
+(:meth:`Fluids.entry_pressure`), with ``"paper"`` ``2 sigma cos(theta) / r``.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from scipy.sparse.csgraph import connected_components
 from porefsi.errors import NetworkError
 from porefsi.flow.fluids import Fluids
 from porefsi.image.voxel_image import axis_index
-from porefsi.network.geometry import boundary_conduit_lengths, cylinder_resistance, resistance_factors
+from porefsi.network.geometry import boundary_conduit_lengths, pore_duct_resistance, resistance_factors
 from porefsi.network.network import Network
 
 __all__ = ["DrainageGraph", "build_graph", "spanning_pores", "boundary_lengths"]
@@ -119,8 +125,8 @@ def build_graph(net: Network, fluids: Fluids, axis, keep: np.ndarray | None = No
     L_lo, L_hi = boundary_lengths(net, ax)
     inl = np.flatnonzero(net.inlet(ax)[keep])
     out = np.flatnonzero(net.outlet(ax)[keep])
-    h_in = cylinder_resistance(R[inl], L_lo[keep][inl])
-    h_out = cylinder_resistance(R[out], L_hi[keep][out])
+    h_in = pore_duct_resistance(net, L_lo[keep][inl], keep[inl])
+    h_out = pore_duct_resistance(net, L_hi[keep][out], keep[out])
     ai = new_id[c[tid, 0]]
     bi = new_id[c[tid, 1]]
     a = np.concatenate([ai, np.full(inl.size, n), out]).astype(np.int64)
@@ -128,8 +134,10 @@ def build_graph(net: Network, fluids: Fluids, axis, keep: np.ndarray | None = No
     throat = np.concatenate([tid, np.full(inl.size + out.size, -1)]).astype(np.int64)
     hs = np.concatenate([h, h_in, h_out])
     pcb = np.zeros(n + 2)
-    pcb[:n] = fluids.capillary_pressure(R)
-    pe_int = np.maximum(fluids.capillary_pressure(net.throat_radius[tid]), np.maximum(pcb[ai], pcb[bi]))
+    shaped = net.conduit_model == "shape_factor"
+    pcb[:n] = fluids.entry_pressure(R, net.pore_shape_factor[keep] if shaped else None)
+    pe_t = fluids.entry_pressure(net.throat_radius[tid], net.throat_shape_factor[tid] if shaped else None)
+    pe_int = np.maximum(pe_t, np.maximum(pcb[ai], pcb[bi]))
     thr = np.concatenate([pe_int, pcb[inl], np.full(out.size, np.inf)])
     # adjacency over internal edges
     m = ai.size

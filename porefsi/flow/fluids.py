@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from porefsi.errors import InputError
+from porefsi.network.geometry import class_shape_factor, shape_class
 
 __all__ = ["Fluids", "PAPER_FLUIDS"]
 
@@ -90,6 +91,50 @@ class Fluids:
         """Young–Laplace pressure ``2 sigma cos(theta) / radius``, Pa, for radius in m (array-like)."""
         r = np.asarray(radius, dtype=float)
         return 2.0 * self.sigma * self.cos_theta / r
+
+    def entry_pressure(self, radius, shape_factor=None):
+        r"""Piston-like drainage entry pressure of a duct of inscribed radius ``radius``, Pa.
+
+        Without ``shape_factor``: Young–Laplace for a circular tube, ``2 sigma cos(theta) / r``
+        (the paper's model). With it: the section class of
+        :func:`porefsi.network.geometry.shape_class` and, for triangles (n = 3 corners, the
+        measured G) and squares (n = 4, G = 1/16), the Mayer–Stowe–Princen energy balance with
+        the wetting fluid left in every corner (Øren, Bakke & Arntzen 1998; Valvatne & Blunt 2004):
+
+        .. math:: P_e = \frac{\sigma\cos\theta}{r}\left(1 + \sqrt{1 + \frac{4 G D}{\cos^2\theta}}\right),
+                  \qquad D = \pi - n\theta + n\sin\theta\cos\theta - \frac{\cos^2\theta}{4G};
+
+        circles keep ``2 sigma cos(theta) / r``. At theta = 0 this is
+        :math:`\sigma(1 + 2\sqrt{\pi G})/r` for every class (the circle's ``2 sigma / r`` at
+        G = 1/(4 pi)). The corner menisci exist while theta < 90° minus the corner half-angle
+        (any angle below 45° for squares; for triangles, up to 60° for the equilateral one and less
+        for sharp ones): the formula assumes they do, exactly true at the paper's theta = 0.
+
+        Parameters
+        ----------
+        radius : array_like of float
+            Inscribed radius, m, > 0.
+        shape_factor : array_like of float, optional
+            G = A/P² of the section (broadcast with ``radius``).
+
+        Returns
+        -------
+        ndarray of float
+            Pa.
+        """
+        r = np.asarray(radius, dtype=float)
+        ct = self.cos_theta
+        if shape_factor is None:
+            return 2.0 * self.sigma * ct / r
+        G0 = np.asarray(shape_factor, dtype=float)
+        cls = shape_class(G0)
+        G = class_shape_factor(G0)
+        th = math.radians(self.theta_deg)
+        n = np.where(cls == 0, 3.0, 4.0)
+        D = np.pi - n * th + n * math.sin(th) * ct - ct * ct / (4.0 * G)
+        msp = self.sigma * ct * (1.0 + np.sqrt(np.maximum(1.0 + 4.0 * G * D / (ct * ct), 0.0))) / r
+        circle = 2.0 * self.sigma * ct / r
+        return np.where(cls == 2, circle, np.where((cls == 1) & (th >= np.pi / 4), circle, msp))
 
     def capillary_number(self, rate: float, area: float) -> float:
         """Ca = mu_n u / sigma with the Darcy velocity u = rate / area (m³/s over m²)."""

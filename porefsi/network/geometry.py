@@ -1,4 +1,17 @@
-r"""Closed-form conduit geometry: hydraulic resistances of the sphere–cylinder–sphere conduit.
+r"""Closed-form conduit geometry: hydraulic resistances of the pore–throat–pore conduit.
+
+Two conduit models (:attr:`Network.conduit_model <porefsi.network.network.Network.conduit_model>`),
+one switch used by every flow computation (permeability, drainage graph, invasion percolation,
+the coupled run):
+
+``"paper"``
+    The seed paper's sphere–cylinder–sphere conduit: a circular cylinder of the inscribed throat
+    radius between two spherical pore parts (:func:`sphere_segment_resistance`).
+``"shape_factor"``
+    Valvatne & Blunt (2004) / Patzek & Silin (2001): every segment is a straight duct whose section
+    is a triangle, a square or a circle, chosen by its shape factor G = A/P² (:func:`shape_class`),
+    of area ``A = r² / (4 G)`` (r the inscribed radius), with single-phase conductance per unit
+    length ``k G A² / mu`` (:func:`duct_conductance_factor`).
 
 A throat conduit is three segments in series (pore-i part, cylinder, pore-j part). Each segment
 has a *hydraulic resistance factor* ``h`` (1/m³) such that, for a fluid of viscosity ``mu`` in
@@ -21,16 +34,88 @@ from __future__ import annotations
 import numpy as np
 
 from porefsi.image.voxel_image import axis_index
-from porefsi.network.network import Network
+from porefsi.network.network import CIRCLE_SHAPE_FACTOR, Network
 
 __all__ = [
+    "TRIANGLE_MAX_G",
+    "SQUARE_MAX_G",
+    "SHAPE_K",
+    "shape_class",
+    "class_shape_factor",
+    "duct_conductance_factor",
+    "duct_lengths",
     "cylinder_resistance",
     "sphere_segment_resistance",
     "resistance_factors",
     "conduit_conductance",
     "boundary_conduit_lengths",
     "boundary_resistance",
+    "pore_duct_resistance",
 ]
+
+
+#: Largest shape factor of a triangle (the equilateral one), sqrt(3)/36.
+TRIANGLE_MAX_G = float(np.sqrt(3.0) / 36.0)
+
+#: Shape factors below this (and above :data:`TRIANGLE_MAX_G`) are squares, above it circles: the
+#: bound pnflow uses (``Element.cpp``), between the square's 1/16 and the circle's 1/(4 pi).
+SQUARE_MAX_G = 0.07
+
+#: Dimensionless conductance ``k`` of :math:`g = k G A^2 / \mu` per class (triangle, square,
+#: circle): Patzek & Silin (2001) give 3/5 for the equilateral triangle (exact), 0.5623 for the
+#: square (series solution) and 1/2 for the circle (Hagen–Poiseuille).
+SHAPE_K = (0.6, 0.5623, 0.5)
+
+
+def shape_class(shape_factor) -> np.ndarray:
+    """Section class of each shape factor: 0 triangle, 1 square, 2 circle (int8 array).
+
+    Triangle: ``G <= sqrt(3)/36`` (:data:`TRIANGLE_MAX_G`, with 1e-9 relative slack so the
+    equilateral triangle's own value is one); square: ``G < 0.07`` (:data:`SQUARE_MAX_G`); circle
+    above. As pnflow's ``Elem`` constructor.
+    """
+    G = np.asarray(shape_factor, dtype=float)
+    out = np.full(G.shape, 2, dtype=np.int8)
+    out[G < SQUARE_MAX_G] = 1
+    out[G <= TRIANGLE_MAX_G * (1 + 1e-9)] = 0
+    return out
+
+
+def class_shape_factor(shape_factor) -> np.ndarray:
+    """Shape factor the conduit model uses: G for triangles, 1/16 for squares, 1/(4 pi) for circles.
+
+    pnflow models a square or circle element as the regular shape itself, whatever G it was given.
+    """
+    G = np.asarray(shape_factor, dtype=float)
+    cls = shape_class(G)
+    return np.where(cls == 0, G, np.where(cls == 1, 1.0 / 16.0, CIRCLE_SHAPE_FACTOR))
+
+
+def duct_conductance_factor(radius, shape_factor) -> np.ndarray:
+    r"""Conductance per unit length times viscosity of a straight duct, ``k G A^2``, m⁴.
+
+    With inscribed radius r and the class shape factor :math:`G_c` (:func:`class_shape_factor`)
+    the section area is :math:`A = r^2/(4G_c)`, so :math:`k G_c A^2 = k r^4 / (16 G_c)`; a duct
+    of length L has resistance factor ``L / (k G_c A^2)`` (1/m³). For a circle this is
+    Hagen–Poiseuille's :math:`\pi r^4 / 8`.
+
+    Parameters
+    ----------
+    radius : array_like of float
+        Inscribed radius r, m.
+    shape_factor : array_like of float
+        Measured G = A/P², in (0, 1/(4 pi)].
+
+    Returns
+    -------
+    ndarray of float
+        m⁴.
+    """
+    r = np.asarray(radius, dtype=float)
+    G = np.asarray(shape_factor, dtype=float)
+    k = np.asarray(SHAPE_K)[shape_class(G)]
+    Gc = class_shape_factor(G)
+    return k * r**4 / (16.0 * Gc)
 
 
 def cylinder_resistance(radius, length):
@@ -77,14 +162,38 @@ def sphere_segment_resistance(pore_radius, throat_radius, length):
     return sphere + cylinder_resistance(rt, L - s)
 
 
+def duct_lengths(net: Network) -> np.ndarray:
+    """Lengths of the pore-i, throat and pore-j ducts of the shape-factor model, m, shape (Nt, 3).
+
+    ``throat_duct_fraction`` times the conduit's pore-to-pore length when the network has it,
+    else the stored ``throat_pore_length[:, 0]``, ``throat_length``, ``throat_pore_length[:, 1]``.
+    """
+    tpl = net.throat_pore_length
+    L = np.column_stack([tpl[:, 0], net.throat_length, tpl[:, 1]])
+    if net.throat_duct_fraction is None:
+        return L
+    return net.throat_duct_fraction * L.sum(axis=1, keepdims=True)
+
+
 def resistance_factors(net: Network) -> np.ndarray:
     """Resistance factors of the three segments of every conduit, 1/m³, shape (Nt, 3).
 
-    Columns: pore ``conns[:, 0]`` part, cylinder, pore ``conns[:, 1]`` part.
+    Columns: pore ``conns[:, 0]`` part, throat, pore ``conns[:, 1]`` part, under the network's
+    conduit model (:attr:`Network.conduit_model`): sphere parts and a cylinder (``"paper"``), or
+    three ducts of the pore, throat and pore sections (``"shape_factor"``: lengths
+    ``throat_pore_length[:, 0]``, ``throat_length``, ``throat_pore_length[:, 1]`` over
+    :func:`duct_conductance_factor` of the pore radius and pore shape factor, the throat's, ...).
     """
     c = net.throat_conns
     rt = net.throat_radius
     h = np.empty((net.n_throats, 3))
+    if net.conduit_model == "shape_factor":
+        L = duct_lengths(net)
+        Rp, Gp = net.pore_radius, net.pore_shape_factor
+        h[:, 0] = L[:, 0] / duct_conductance_factor(Rp[c[:, 0]], Gp[c[:, 0]])
+        h[:, 1] = L[:, 1] / duct_conductance_factor(rt, net.throat_shape_factor)
+        h[:, 2] = L[:, 2] / duct_conductance_factor(Rp[c[:, 1]], Gp[c[:, 1]])
+        return h
     h[:, 0] = sphere_segment_resistance(net.pore_radius[c[:, 0]], rt, net.throat_pore_length[:, 0])
     h[:, 1] = cylinder_resistance(rt, net.throat_length)
     h[:, 2] = sphere_segment_resistance(net.pore_radius[c[:, 1]], rt, net.throat_pore_length[:, 1])
@@ -137,8 +246,9 @@ def boundary_conduit_lengths(net: Network, axis: str | int) -> tuple[np.ndarray,
 def boundary_resistance(net: Network, axis: str | int) -> tuple[np.ndarray, np.ndarray]:
     """Resistance factors of the boundary conduits to the low and high faces of ``axis``, 1/m³.
 
-    Each is a cylinder of the pore radius over :func:`boundary_conduit_lengths`:
-    ``h = 8 L / (pi R^4)``; with viscosity ``mu`` its conductance is ``1 / (mu h)``.
+    Each is a duct of the pore's section over :func:`boundary_conduit_lengths`: a cylinder of the
+    pore radius, ``h = 8 L / (pi R^4)`` (``"paper"``), or ``L / duct_conductance_factor(R, G_p)``
+    (``"shape_factor"``); with viscosity ``mu`` its conductance is ``1 / (mu h)``.
 
     Returns
     -------
@@ -146,4 +256,17 @@ def boundary_resistance(net: Network, axis: str | int) -> tuple[np.ndarray, np.n
         1/m³, finite and positive.
     """
     L_lo, L_hi = boundary_conduit_lengths(net, axis)
-    return cylinder_resistance(net.pore_radius, L_lo), cylinder_resistance(net.pore_radius, L_hi)
+    return pore_duct_resistance(net, L_lo), pore_duct_resistance(net, L_hi)
+
+
+def pore_duct_resistance(net: Network, length, pores=None) -> np.ndarray:
+    """Resistance factor (1/m³) of a duct of each pore's own section over ``length`` (m).
+
+    ``pores`` (indices) selects pores, ``length`` then has one entry per selected pore. A cylinder
+    of the pore radius for ``"paper"``, the pore's shape-factor duct for ``"shape_factor"``.
+    """
+    idx = slice(None) if pores is None else np.asarray(pores, dtype=np.int64)
+    R = net.pore_radius[idx]
+    if net.conduit_model == "shape_factor":
+        return np.asarray(length, dtype=float) / duct_conductance_factor(R, net.pore_shape_factor[idx])
+    return cylinder_resistance(R, length)

@@ -9,10 +9,18 @@ import numpy as np
 from porefsi.errors import InputError, NetworkError
 from porefsi.image.voxel_image import axis_index, positive_length
 
-__all__ = ["Network", "FACES"]
+__all__ = ["Network", "FACES", "CONDUCTANCE_MODELS", "CIRCLE_SHAPE_FACTOR"]
 
 #: Column order of :attr:`Network.pore_faces`.
 FACES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
+
+#: Names of the conduit models (:attr:`Network.conductance`): ``"paper"`` = circular cylinders of
+#: the inscribed radius in spheres (the seed paper's model); ``"shape_factor"`` = Valvatne & Blunt
+#: (2004) triangle / square / circle sections of the measured shape factor.
+CONDUCTANCE_MODELS = ("paper", "shape_factor")
+
+#: Shape factor G = A / P^2 of a circle, 1 / (4 pi): the largest of any cross-section.
+CIRCLE_SHAPE_FACTOR = 1.0 / (4.0 * np.pi)
 
 
 #: Relative slack allowed when checking throat radius <= pore radius: both are products of voxel
@@ -42,6 +50,57 @@ def _arr(name, value, dtype, shape):
         raise InputError(f"Network.{name} must have shape {shape}, got {a.shape}")
     if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
         raise InputError(f"Network.{name} has NaN or infinite entries")
+    return a
+
+
+def _shape_fields(net, n_p: int, n_t: int) -> dict:
+    """Validated ``throat_shape_factor``, ``pore_shape_factor`` and ``conductance`` of ``net``."""
+    tg, pg = net.throat_shape_factor, net.pore_shape_factor
+    if (tg is None) != (pg is None):
+        given = "throat_shape_factor" if pg is None else "pore_shape_factor"
+        raise InputError(
+            f"Network.{given} is given without the other shape factor; give both "
+            "throat_shape_factor and pore_shape_factor, or neither (paper model)"
+        )
+    out: dict = {"throat_shape_factor": None, "pore_shape_factor": None}
+    if tg is not None:
+        for name, val, n in (("throat_shape_factor", tg, n_t), ("pore_shape_factor", pg, n_p)):
+            a = _arr(name, val, float, (n,))
+            bad = np.flatnonzero((a <= 0) | (a > CIRCLE_SHAPE_FACTOR * (1 + 1e-9)))
+            if bad.size:
+                raise InputError(
+                    f"Network.{name} entry {int(bad[0])} is {a[bad[0]]!r}: a shape factor G = A/P^2 lies in "
+                    f"(0, 1/(4 pi) = {CIRCLE_SHAPE_FACTOR:.6f}]; fix the value or re-extract the network"
+                )
+            out[name] = a
+    model = net.conductance
+    if model is not None:
+        if model not in CONDUCTANCE_MODELS:
+            raise InputError(f"unknown conductance model {model!r}; use one of {CONDUCTANCE_MODELS}")
+        if model == "shape_factor" and tg is None:
+            raise InputError(
+                "conductance='shape_factor' needs the network's measured shape factors, which this network "
+                "lacks (an older file or a lattice); re-extract it from the image (porefsi extract) or use "
+                "conductance='paper'"
+            )
+    out["conductance"] = model
+    return out
+
+
+def _duct_fraction(value, n_t: int, swapped) -> np.ndarray | None:
+    """Validated ``throat_duct_fraction`` (columns 0 and 2 swapped where the conns were)."""
+    if value is None:
+        return None
+    a = _arr("throat_duct_fraction", value, float, (n_t, 3))
+    bad = np.flatnonzero((a <= 0).any(axis=1) | (np.abs(a.sum(axis=1) - 1.0) > 1e-9))
+    if bad.size:
+        raise InputError(
+            f"Network.throat_duct_fraction row {int(bad[0])} is {a[bad[0]].tolist()}: each row holds three "
+            "shares > 0 of the conduit length summing to 1; fix it or re-extract the network"
+        )
+    if swapped is not None and swapped.any():
+        a = a.copy()
+        a[swapped] = a[swapped, ::-1]
     return a
 
 
@@ -80,13 +139,31 @@ class Network:
         Corner of the image box, m.
     throat_volume : ndarray of float, shape (Nt,), optional
         Throat volume, m³, >= 0 (zeros when pore regions own all the pore voxels).
+    throat_shape_factor, pore_shape_factor : ndarray of float, shapes (Nt,) and (Np,), optional
+        Dimensionless shape factor G = A / P² of each throat's and pore's cross-section, in
+        (0, 1/(4 pi)] (the circle's is the largest). Give both or neither. With the inscribed
+        radius r the section area is ``A = r² / (4 G)`` (exact for circles, squares, triangles and
+        every polygon with an inscribed circle). ``None`` for networks without measured sections
+        (older files, lattices): they use the paper's model.
+    throat_duct_fraction : ndarray of float, shape (Nt, 3), optional
+        Shares of each conduit's pore-to-pore length (``throat_pore_length[:, 0] + throat_length +
+        throat_pore_length[:, 1]``) taken by the pore-i duct, the throat duct and the pore-j duct of
+        the shape-factor model, each > 0, rows summing to 1 (dimensionless, so a deformation that
+        scales the lengths keeps them). ``None``: the shape-factor model uses the stored lengths
+        themselves (as for networks read from pnextract's files).
+    conductance : {'paper', 'shape_factor'} or None, optional
+        Conduit model every flow computation uses (:data:`CONDUCTANCE_MODELS`; see
+        :mod:`porefsi.network.geometry`). ``None`` (default): ``'shape_factor'`` when both shape
+        factors are given, else ``'paper'``. Read :attr:`conduit_model` for the resolved name.
 
     Raises
     ------
     InputError
         Shapes, non-numeric or non-integer entries, NaNs, non-positive sizes, self-loops,
         duplicate throats (in either order), throat radius larger than a pore radius, pore
-        indices out of range, or a bad ``voxel_size`` or ``shape``.
+        indices out of range, a bad ``voxel_size`` or ``shape``, shape factors outside
+        (0, 1/(4 pi)] or only one of the two given, an unknown ``conductance``, or
+        ``conductance='shape_factor'`` without shape factors.
 
     Notes
     -----
@@ -108,6 +185,10 @@ class Network:
     shape: tuple
     origin: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
     throat_volume: np.ndarray | None = None
+    throat_shape_factor: np.ndarray | None = None
+    pore_shape_factor: np.ndarray | None = None
+    throat_duct_fraction: np.ndarray | None = None
+    conductance: str | None = None
 
     def __post_init__(self):
         coords = _own("pore_coords", self.pore_coords, float)
@@ -123,6 +204,7 @@ class Network:
             raise InputError(f"Network.throat_conns must be integers, got dtype {conns.dtype}")
         conns = conns.astype(np.int64)
         n_t = conns.shape[0]
+        swapped = None
         f = {
             "pore_coords": coords,
             "pore_radius": _arr("pore_radius", self.pore_radius, float, (n_p,)),
@@ -163,6 +245,7 @@ class Network:
                 tpl = f["throat_pore_length"].copy()
                 tpl[swap] = tpl[swap, ::-1]
                 f["throat_pore_length"] = tpl
+                swapped = swap
             key = conns[:, 0] * n_p + conns[:, 1]
             uniq, first, counts = np.unique(key, return_index=True, return_counts=True)
             if uniq.size != n_t:
@@ -180,6 +263,8 @@ class Network:
                     f"{rmax[t]:.4g} m; clip throat radii to min(pore radii)"
                 )
         f["throat_conns"] = conns
+        f.update(_shape_fields(self, n_p, n_t))
+        f["throat_duct_fraction"] = _duct_fraction(self.throat_duct_fraction, n_t, swapped)
         f["voxel_size"] = positive_length(self.voxel_size, "Network.voxel_size")
         try:
             shp = tuple(int(s) for s in self.shape)
@@ -192,6 +277,22 @@ class Network:
             if isinstance(v, np.ndarray):
                 v.setflags(write=False)
             object.__setattr__(self, k, v)
+
+    @property
+    def conduit_model(self) -> str:
+        """Resolved conduit model, one of :data:`CONDUCTANCE_MODELS` (see ``conductance``)."""
+        if self.conductance is not None:
+            return self.conductance
+        return "paper" if self.throat_shape_factor is None else "shape_factor"
+
+    @property
+    def has_shape_factors(self) -> bool:
+        """Whether the network carries measured throat and pore shape factors."""
+        return self.throat_shape_factor is not None
+
+    def with_conductance(self, model: str | None) -> Network:
+        """Copy using conduit ``model`` (``None``: the default for its data); validated."""
+        return self.replace(conductance=model)
 
     # -- sizes ---------------------------------------------------------------------------
     @property
