@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from porefsi.errors import InputError
+from porefsi.io.results import atomic_write_bytes
 from porefsi.network.network import FACES, Network
 
 __all__ = ["write_network_vtp"]
@@ -204,5 +205,5 @@ def write_network_vtp(
         "</Lines>\n",
         "</Piece>\n</PolyData>\n</VTKFile>\n",
     ]
-    p.write_text("".join(parts), encoding="ascii")
+    atomic_write_bytes(p, "".join(parts).encode("ascii"))  # atomic, with the umask's permissions
     return p

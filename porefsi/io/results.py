@@ -6,6 +6,7 @@ killed at any moment leaves either the previous complete file or the new one, ne
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -17,16 +18,41 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["jsonable", "atomic_write_bytes", "atomic_write_text", "write_json", "write_csv", "write_npz", "PvdSeries",
+__all__ = ["jsonable", "file_mode", "atomic_write_bytes", "atomic_path", "atomic_write_text", "write_json", "write_csv",
+           "write_npz", "PvdSeries",
            "save_checkpoint", "load_checkpoint", "read_pore_steps"]
 
 
+def file_mode() -> int:
+    """Permission bits of a new file under the process's umask (``0o666 & ~umask``), e.g. 0o644."""
+    return 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it where Linux allows (``/proc/self/status``)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    old = os.umask(0o022)  # elsewhere: set and restore (not thread-safe, but only the fallback)
+    os.umask(old)
+    return old
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file + ``os.replace``)."""
+    """Write ``data`` to ``path`` atomically (temporary file + ``os.replace``).
+
+    The file gets the permissions a plain ``open(path, "w")`` would give it (``0o666`` less the
+    umask), not the ``0o600`` of the temporary file it starts as.
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, file_mode())
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -37,6 +63,27 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
             os.unlink(tmp)
         raise
     return p
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path):
+    """Yield a temporary path next to ``path`` for a writer that wants a file name (e.g. meshio).
+
+    When the block ends normally the temporary file gets the umask's permissions and is renamed
+    over ``path``; when it raises, the temporary file is removed and ``path`` is left as it was.
+    """
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, file_mode())
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
 
 
 def atomic_write_text(path: str | Path, text: str) -> Path:

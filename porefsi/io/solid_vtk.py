@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from porefsi.errors import InputError
+from porefsi.io.results import atomic_path
 
 __all__ = ["write_solid_vtu", "read_solid_vtu"]
 
@@ -62,9 +63,9 @@ def write_solid_vtu(path: str | Path, points: np.ndarray, tets: np.ndarray, *,
         if a.shape[0] != len(cells):
             raise InputError(f"cell array {k!r} has {a.shape[0]} rows, mesh has {len(cells)} tets")
         cd[str(k)] = [a]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    meshio.Mesh(pts, [("tetra", cells)], point_data=pd, cell_data=cd).write(
-        path, file_format="vtu", binary=True, compression=None)
+    with atomic_path(path) as tmp:  # atomic, with the umask's permissions
+        meshio.Mesh(pts, [("tetra", cells)], point_data=pd, cell_data=cd).write(
+            tmp, file_format="vtu", binary=True, compression=None)
     return path
 
 
