@@ -100,14 +100,48 @@ def _png(path: Path) -> None:
     assert path.stat().st_size > 10_000, f"{path.name}: {path.stat().st_size} bytes, an empty plot?"
 
 
+#: Scale of the elastic response to a pore pressure (the smoke bounds below): a spherical cavity of
+#: radius a under pressure p in an infinite solid moves its wall by u = p a / (4 G)
+#: = p a (1 + nu) / (2 E) (Lame, b -> infinity). The cavity is the largest pore of the built-in
+#: sample (the cases' rock): 262 pores, largest volume 3.26e-12 m^3, i.e. a volume-equivalent radius
+#: a = 92 um (computed in :func:`_largest_pore_radius`). Irregular pore shapes, pressurised
+#: neighbours and a porous (not infinite) surrounding only add compliance, so the measured
+#: u_max / (p_max a (1 + nu) / (2 E)) is >= 1: 1.69 in the drainage smoke and 1.80-2.13 at every
+#: snapshot of the full drainage run (coarsen 5, cases/drainage/results.json); bounds [1, 4].
+CAVITY_RATIO = (1.0, 4.0)
+#: The paper's hull interface hands the pore force to ~40 % of the wall nodes as point loads: its
+#: largest displacement exceeds the consistent traction's on the same run (measured 1.7-3.0 in the
+#: test_points, cost and verification smokes; ~2.7 in the full drainage run, cases/drainage/README.md).
+HULL_OVER_TRACTION = (1.0, 6.0)
+
+
+def _largest_pore_radius() -> float:
+    """Volume-equivalent radius (m) of the largest pore of the built-in sample's network (x axis)."""
+    from porefsi.image import load_sample
+    from porefsi.image.ops import percolating_cluster
+    from porefsi.network.extract import extract_network
+
+    net = extract_network(percolating_cluster(load_sample(), "x").image).network
+    return float((3.0 * net.pore_volume.max() / (4.0 * np.pi)) ** (1.0 / 3.0))
+
+
+def _cavity_scale(p_max: float) -> float:
+    E, nu = PAPER_PHYSICS["solid", "E"], PAPER_PHYSICS["solid", "nu"]
+    return p_max * _largest_pore_radius() * (1.0 + nu) / (2.0 * E)
+
+
 def _check_drainage(saved, out):
     # Injection displaces water: Sw falls, and by exactly the injected volume fraction before
     # breakthrough (mass balance of the DPN, round-off).
     sws = [s["sw"] for s in saved["at_snapshots"]] + [saved["final"]["sw"]]
     assert all(b < a for a, b in zip([1.0, *sws], sws, strict=False))
     assert saved["mass_balance_error"] < 1e-12
-    # The pore pressure loads the rock: a finite, nonzero, sub-voxel displacement.
-    assert 0.0 < saved["max_displacement_m"] < 1e-7
+    # The pore pressure loads the rock: the displacement has the size of the largest pore's
+    # Lame response to the largest pore pressure (CAVITY_RATIO above).
+    final = saved["final"]
+    ratio = final["max_displacement_m"] / _cavity_scale(final["max_pore_pressure_Pa"])
+    assert CAVITY_RATIO[0] <= ratio <= CAVITY_RATIO[1], ratio
+    assert saved["max_displacement_m"] == final["max_displacement_m"]
     assert np.isfinite(saved["max_von_mises_Pa"]) and saved["max_von_mises_Pa"] > 0
     assert saved["settings"]["coarsen"] >= 10
     assert saved["interface_unloaded_pores"] == 0  # the default (traction) interface loads every pore
@@ -121,7 +155,10 @@ def _check_test_points(saved, out):
     rows = saved["table"]
     assert [r["n_test_points"] for r in rows] == sorted(r["n_test_points"] for r in rows) and len(rows) >= 2
     assert all(r["pc_max_rel_diff"] < 1e-6 for r in rows)
-    assert all(0.0 < r["max_displacement_m"] < 1e-7 for r in rows)
+    u_traction = saved["traction_interface"]["max_displacement_m"]
+    for r in rows:
+        ratio = r["max_displacement_m"] / u_traction
+        assert HULL_OVER_TRACTION[0] <= ratio <= HULL_OVER_TRACTION[1], (r["n_test_points"], ratio)
     assert 0.0 < saved["final_sw"] < 1.0
     assert saved["traction_interface"]["n_unloaded_pores"] == 0
 
@@ -184,7 +221,20 @@ def _check_verification(saved, out):
     assert max(saved["lame"]["traction_resultant"]) < 1e-12  # closed cavity: zero net force
     assert saved["ip_limit"]["jaccard_mean"][0] == 1.0  # lowest Ca: the invasion percolation order
     errs = saved["comparison"]["errors"]
-    assert errs and all(0.0 < e["rel_error_shared"] < 10.0 and e["n_shared_nodes"] > 100 for e in errs.values())
+    assert errs and all(e["n_shared_nodes"] > 100 for e in errs.values())
+    for name, e in errs.items():
+        if "traction" in name:
+            # a consistent load on a mesh twice as coarse as the reference's: closer than the zero
+            # field (error < 1, measured 0.36), and the same largest displacement within a factor 2
+            # (measured 0.94)
+            assert 0.0 < e["rel_error_shared"] < 1.0 and 0.5 < e["max_u_ratio"] < 2.0, (name, e)
+        else:
+            # the hull is not a consistent traction (HULL_OVER_TRACTION): its largest displacement
+            # exceeds the traction reference's (measured 2.83) and its field differs by O(1)
+            # (measured 1.27); an error below 0.5 would mean the hull row ran another interface
+            assert "hull" in name, name
+            assert HULL_OVER_TRACTION[0] <= e["max_u_ratio"] <= HULL_OVER_TRACTION[1], (name, e)
+            assert 0.5 < e["rel_error_shared"] < 5.0, (name, e)
     assert saved["reference"]["n_nodes"] > max(e["n_nodes"] for e in errs.values())
     assert (out / "reference" / "smoke_reference.npz").is_file()
 
@@ -196,7 +246,12 @@ def _check_cost(saved, out):
     # at rock stiffness the solid does not change the drainage: the same Sw in every row
     sws = [r["final_sw"] for r in runs.values()]
     assert max(sws) - min(sws) < 1e-6 and 0.0 < sws[0] < 1.0
-    assert all(r["max_displacement_m"] > 0 for name, r in runs.items() if name != "fluid only")
+    # the paper's runs (hull interface) against porefsi's defaults (traction) on the same drainage
+    u_default = runs["coupled, porefsi defaults (traction, static)"]["max_displacement_m"]
+    for name, r in runs.items():
+        if name not in ("fluid only", "coupled, porefsi defaults (traction, static)"):
+            ratio = r["max_displacement_m"] / u_default
+            assert HULL_OVER_TRACTION[0] <= ratio <= HULL_OVER_TRACTION[1], (name, ratio)
     assert saved["table_markdown"].count("\n| ") >= 6
     # CPU time by stage: every run's stages are >= 0 and sum to no more than its CPU total
     for name, r in runs.items():
@@ -212,7 +267,15 @@ def _check_speed_accuracy(saved, out):
     assert saved["n_eval_points"] > 1000
     runs = {r["name"]: r for r in saved["runs"]}
     assert "baseline" in runs and all(r["status"] == "ok" for r in runs.values())
-    assert all(0.0 < r["err_field"] < 10.0 and r["cpu_s"] > 0 for r in runs.values())
+    assert all(r["cpu_s"] > 0 for r in runs.values())
+    # the default (consistent traction) run is closer to the reference than the zero field
+    # (measured 0.53); TDG equals the static solid at rock stiffness (measured 7e-16); the hull row is
+    # the paper's inconsistent interface, further from the reference (measured 0.91)
+    assert 0.0 < runs["baseline"]["err_field"] < 1.0
+    if "tdg" in runs:
+        assert runs["tdg"]["diff_vs_baseline"] < 1e-9
+    if "hull" in runs:
+        assert runs["baseline"]["err_field"] < runs["hull"]["err_field"] < 5.0
     assert saved["recommendation"]["front"] and saved["recommendation"]["recommended"]["name"] in runs
     assert any(r["pareto"] for r in runs.values())
     assert (out / "table.md").read_text().count("\n|") >= len(runs)

@@ -72,18 +72,37 @@ def test_traction_interface_matches_lame_bounds(cavity):
     assert 0.95 * lo < w < hi, (lo, w, hi)
 
 
-def test_hull_interface_matches_lame_bounds(cavity):
+HULL_SEEDS = range(4)  # include the extremes of seeds 0-11 (seed 0: 0.982 x upper, seed 1: 0.996 x lower)
+
+
+def test_hull_interface_matches_lame_bounds_for_every_seed(cavity):
+    """The paper's hull operator, at several test-point seeds.
+
+    What this pins: a cavity of radius 4 voxels in a 20^3 block (P1 mesh, coarsen 1). Here the
+    hull's work lies inside the Lame bracket for every seed tried (seeds 0-11: 0.996-1.119 x the
+    lower value, 0.874-0.982 x the upper) and the test checks seeds 0-3. It is *not* a property
+    of the operator at every resolution: the same cavity at radius 3.2, 4.8 and 5.6 voxels in
+    16^3, 24^3 and 28^3 blocks gave 0.98-1.09, 1.07-1.15 and 1.00-1.03 x the upper value (seeds
+    0-3), because the operator lumps P 4 pi r_in^2 as point loads onto the ~40 % of wall nodes
+    inside the enlarged hull (more compliant than a traction by an amount that depends on which
+    nodes fall inside). What holds for every seed and resolution tried: exact load balance,
+    radial forces (tests/test_coupling_interface.py) and a resultant below 7 % of the total
+    magnitude (measured 1.7-6.6 %).
+    """
     cav, mesh, model = cavity
     wall = np.zeros(mesh.n_nodes, bool)
     wall[mesh.nodes_tagged("pore_wall")] = True
     c = np.full((1, 3), N / 2 * H)
     r_in = float(np.min(np.linalg.norm(mesh.points[wall] - c, axis=1)))  # the maximal (inscribed) ball
-    itf = hull_interface(c, [r_in], mesh.points, n_test_points=800, tolerance=H, rng=np.random.default_rng(5),
-                         candidates=wall)
-    F = itf.nodal_forces([P])
-    assert itf.load_balance_error([P]) < 1e-12  # sum of magnitudes = P 4 pi r²
-    # The paper's operator is not a consistent traction: its resultant is small, not zero.
-    assert np.linalg.norm(F.sum(axis=0)) / np.linalg.norm(F, axis=1).sum() < 0.1
     lo, hi = _lame_bounds(cav)
-    w = _work(model, F)
-    assert 0.95 * lo < w < hi, (lo, w, hi)
+    works = []
+    for seed in HULL_SEEDS:
+        itf = hull_interface(c, [r_in], mesh.points, n_test_points=800, tolerance=H,
+                             rng=np.random.default_rng(seed), candidates=wall)
+        F = itf.nodal_forces([P])
+        assert itf.load_balance_error([P]) < 1e-12  # sum of magnitudes = P 4 pi r²
+        # The paper's operator is not a consistent traction: its resultant is small, not zero.
+        assert np.linalg.norm(F.sum(axis=0)) / np.linalg.norm(F, axis=1).sum() < 0.1, seed
+        works.append(_work(model, F))
+    works = np.array(works)
+    assert np.all((0.95 * lo < works) & (works < hi)), (lo, works, hi)

@@ -17,11 +17,21 @@ def test_solid_cli_json_and_vtu(tmp_path, capsys):
     for key in ("n_nodes", "n_tets", "removed_solid_fraction", "effective_modulus_Pa", "max_displacement_m",
                 "max_von_mises_Pa", "seconds"):
         assert key in s
-    # porous rock is softer than the grains' uniaxial-strain modulus lambda + 2 mu (29.4 GPa at
-    # E = 20 GPa, nu = 0.28) and stiffer than zero; the platen moves strain * L = 1e-3 * 0.6414 mm
-    assert 0 < s["effective_modulus_Pa"] < 29.4e9
+    # the platen moves strain * L = 1e-3 * 0.6414 mm
     assert np.isclose(s["max_displacement_m"], 1e-3 * 120 * 5.345e-6, rtol=0.05)
     p, t, pd, cd = read_solid_vtu(out / "solid.vtu")
+    # Voigt bound (rigorous, any microstructure): with rollers on the lateral faces the uniform
+    # uniaxial strain of the solid is kinematically admissible, so the apparent modulus is at most
+    # the solid fraction of the mesh times the grains' lambda + 2 mu = E(1-nu)/((1+nu)(1-2nu))
+    # (25.57 GPa at E = 20 GPa, nu = 0.28); +1 % for the SVK nonlinearity at 1e-3 strain. A
+    # connected solid at ~11 % mesh porosity keeps most of it (dilute spherical pores: M (1 - ~2 phi),
+    # 0.87 of the bound): at least half. Measured 20.36 GPa = 0.90 of the bound (22.70 GPa).
+    a, b, c = (p[t[:, k]] - p[t[:, 0]] for k in (1, 2, 3))
+    solid_volume = np.abs(np.einsum("ij,ij->i", np.cross(a, b), c)).sum() / 6.0
+    box_volume = (120 * 5.345e-6) ** 3
+    E, nu = 20e9, 0.28
+    voigt = solid_volume / box_volume * E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+    assert 0.5 * voigt < s["effective_modulus_Pa"] < 1.01 * voigt, (s["effective_modulus_Pa"], voigt)
     assert len(p) == s["n_nodes"] and len(t) == s["n_tets"]
     assert pd["displacement"].shape == (s["n_nodes"], 3)
     assert np.isclose(cd["von_mises"].max(), s["max_von_mises_Pa"])
