@@ -111,7 +111,7 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
     integral, the throat length ``L_t`` and pore length ``d - L_t`` of two uniform ducts (radii
     r_t and R) with the same length and the same integral are
 
-    .. math:: L_t = \frac{I - d / R^4}{r_t^{-4} - R^{-4}} \\in [0, d],
+    .. math:: L_t = \frac{I - d / R^4}{r_t^{-4} - R^{-4}} \in [0, d],
 
     or ``d / 2`` when ``R <= r_t`` (no constriction: both ducts alike).
 
