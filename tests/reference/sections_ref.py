@@ -56,13 +56,36 @@ def sections(labels, conns):
     return area, faces, wall
 
 
+def ridge_radius(dt2, radius_of, idx, u):
+    """Radius at voxel ``idx`` plus the length of the across-line part of its central-difference
+    gradient (voxels outside the image read 0), capped at sqrt(2)/2; 0 in solid."""
+    f = radius_of(int(dt2[idx]))
+    if f == 0:
+        return 0.0
+
+    def at(j):
+        return radius_of(int(dt2[j])) if all(0 <= j[k] < dt2.shape[k] for k in range(3)) else 0.0
+
+    g = np.zeros(3)
+    for k in range(3):
+        hi = list(idx)
+        lo = list(idx)
+        hi[k] += 1
+        lo[k] -= 1
+        g[k] = (at(tuple(hi)) - at(tuple(lo))) / 2
+    u = np.asarray(u, dtype=float)
+    across = g - np.dot(g, u) * u
+    return f + min(float(np.linalg.norm(across)), math.sqrt(2) / 2)
+
+
 def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore, step):
     """Side lengths d (Nt, 2) and resistance-equivalent throat lengths (Nt, 2), voxels.
 
     ``radius_of(v)`` gives the radius of a distance-map value. Along the straight segment from a
     pore centre to the throat point, midpoint samples of ``ceil(d / step)`` equal parts take the
-    radius of the nearest voxel (halves rounded up, indices clipped to the image), clamped to
-    [r_t, R]; the throat length solves ``L_t / r_t^4 + (d - L_t) / R^4 = sum(dx / r^4)``.
+    ridge radius (:func:`ridge_radius`) of the nearest voxel (halves rounded up, indices clipped
+    to the image), clamped to [r_t, R]; the throat length solves
+    ``L_t / r_t^4 + (d - L_t) / R^4 = sum(dx / r^4)``.
     """
     n_t = len(conns)
     d_out = np.zeros((n_t, 2))
@@ -82,7 +105,7 @@ def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore,
             for q in range(m):
                 x = [centre[p][k] + (q + 0.5) / m * vec[k] for k in range(3)]
                 idx = tuple(min(max(math.floor(x[k] + 0.5), 0), dt2.shape[k] - 1) for k in range(3))
-                r = min(max(radius_of(int(dt2[idx])), rt), R)
+                r = min(max(ridge_radius(dt2, radius_of, idx, [v / d for v in vec]), rt), R)
                 total += (d / m) / r**4
             lt = (total - d / R**4) / (1 / rt**4 - 1 / R**4)
             lt_out[t, s] = min(max(lt, 0.0), d)
