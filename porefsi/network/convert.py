@@ -152,7 +152,7 @@ def _check_file_values(d: Mapping) -> None:
         try:
             a = np.asarray(d[key], dtype=float)
         except (TypeError, ValueError):
-            raise NetworkError(f"network key {key!r} is not numeric; re-extract the network (porefsi extract)") from None
+            raise NetworkError(f"network key {key!r} is not numeric; re-extract the network") from None
         bad = ~np.isfinite(a) | ((a < 0) if rule == ">= 0" else (a <= 0))
         if bad.any():
             flat = np.flatnonzero(bad.reshape(a.shape[0], -1).any(axis=1)) if a.ndim else np.array([0])
