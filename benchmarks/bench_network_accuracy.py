@@ -13,6 +13,11 @@ pack and Gaussian blob media at two porosities (seeded, so the voxel reference c
 on the same arrays: ``--save-images DIR`` writes each as ``NAME.npz`` with ``image`` and
 ``voxel_size_m`` keys).
 
+``--pc-reference FILE.json`` (``{"pc": [...Pa], "snw": [...]}``, e.g. PoreSpy's image-based
+morphological drainage of the 400³ Berea along x, sigma = 0.03 N/m, theta = 0) adds the
+quasi-static Pc at Sw = 0.9 and 0.5 of porefsi's invasion percolation (with trapping) on the
+400³ network along x, per model.
+
 Usage::
 
     python benchmarks/bench_network_accuracy.py [--data /path/to/data] [--reference ref.json]
@@ -98,6 +103,35 @@ def network_k(pore, vs, model) -> tuple[dict, dict]:
     return ks, {"cpu_s": time.process_time() - t, "n_pores": net.n_pores, "n_throats": net.n_throats}
 
 
+def pc_at(sw_curve, pc_curve, target) -> float:
+    """Smallest Pc (Pa) at which the wetting saturation falls to ``target`` or below."""
+    sw = np.asarray(sw_curve)
+    pc = np.asarray(pc_curve)
+    hit = np.flatnonzero(sw <= target)
+    return float(pc[hit[0]]) if hit.size else float("nan")
+
+
+def pc_comparison(pore, vs, ref: dict) -> dict:
+    """Pc at Sw = 0.9, 0.5: invasion percolation per model vs the reference curve."""
+    from porefsi.flow.fluids import Fluids
+    from porefsi.flow.invasion import invasion_percolation
+
+    ref_sw = 1.0 - np.asarray(ref["snw"])
+    out = {}
+    for model in ("paper", "shape_factor"):
+        net = extract_network(VoxelImage(pore.astype(np.uint8), voxel_size=vs), conductance=model).network
+        ip = invasion_percolation(net, Fluids(), "x")
+        row = {}
+        for target in (0.9, 0.5):
+            mine, theirs = pc_at(ip.sw, ip.capillary_pressure, target), pc_at(ref_sw, ref["pc"], target)
+            row[str(target)] = {"porefsi_Pa": mine, "reference_Pa": theirs, "ratio": mine / theirs}
+        out[model] = row
+        cells = [f"Sw={t}: {v['porefsi_Pa']:7.0f} vs {v['reference_Pa']:7.0f} Pa ({v['ratio']:.3f})"
+                 for t, v in row.items()]
+        print(f"    Pc {model:13s} " + "  ".join(cells))
+    return out
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", default=os.environ.get("POREFSI_DATA"))
@@ -105,6 +139,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--only")
     ap.add_argument("--json")
     ap.add_argument("--save-images")
+    ap.add_argument("--pc-reference")
     a = ap.parse_args(argv)
     refs = json.loads(Path(a.reference).read_text()) if a.reference else {}
     only = set(a.only.split(",")) if a.only else None
@@ -128,6 +163,8 @@ def main(argv=None) -> dict:
             m = float(np.nanmean(list(ks.values())))
             axes = " ".join(f"{ax}={ks[ax]:7.1f}" for ax in "xyz")
             print(f"    {model:13s} {axes}  mean={m:7.1f}  ratio={m / ref_mean:6.3f}  cpu={row[model]['cpu_s']:.1f}s")
+        if a.pc_reference and name == "berea_400":
+            row["pc_sw"] = pc_comparison(pore, vs, json.loads(Path(a.pc_reference).read_text()))
     if a.json:
         Path(a.json).write_text(json.dumps(out, indent=1))
     return out
