@@ -136,6 +136,10 @@ class NetworkConfig:
     precoupling_tol: float = _f(0.01, "tolerance on the mean-pore-size change E_a (eq. 3.3)", lo=0.0,
                                 lo_open=True)
     precoupling_max_iter: int = _f(10, "maximum pre-coupling re-extractions", lo=1)
+    conductance: str = _f("shape_factor", "conduit model of every flow computation: shape_factor = Valvatne-Blunt "
+                          "sections measured from the image (agrees with the rock, docs/extraction.md); paper = "
+                          "circular cylinders of the inscribed radius (the seed paper's model)",
+                          choices=("shape_factor", "paper"))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -18,7 +18,7 @@ import numpy as np
 from porefsi.cli._common import _ArgumentError, add_image_args, emit, image_from_args, positive_float
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import AXES
-from porefsi.network.network import Network
+from porefsi.network.network import CONDUCTANCE_MODELS, Network
 
 __all__ = ["register", "add_network_args", "network_from_args", "run_extract", "run_permeability"]
 
@@ -92,6 +92,10 @@ def _add_axis_args(p: argparse.ArgumentParser) -> None:
                    help="flow axis (x, y, z = array axes 0, 1, 2); default x")
     p.add_argument("--keep-isolated", action="store_true",
                    help="images: extract every pore cluster instead of only the one percolating along --axis")
+    p.add_argument("--conductance", choices=CONDUCTANCE_MODELS, default=None,
+                   help="conduit model: shape_factor (Valvatne-Blunt sections measured from the image; the "
+                   "default for extracted networks) or paper (circular cylinders of the inscribed radius, "
+                   "the seed paper's model and radius convention); a network file keeps its own unless given")
 
 
 def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
@@ -113,7 +117,10 @@ def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
                 "own voxel size and geometry); drop those options"
             )
         net = load_network(source)
-        return net, {"source": str(source), "source_kind": "network", "voxel_size_m": net.voxel_size,
+        if getattr(args, "conductance", None):
+            net = net.with_conductance(args.conductance)
+        return net, {"source": str(source), "source_kind": "network", "conductance": net.conduit_model,
+                     "voxel_size_m": net.voxel_size,
                      "shape": list(net.shape), "seconds_read": time.perf_counter() - t0}
     details = _extract_from_image(args, source, axis, keep_isolated=getattr(args, "keep_isolated", False))
     return details.pop("_network"), details
@@ -138,7 +145,7 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
         perc = percolating_cluster(image, axis)
         removed, work = float(perc.removed_fraction), perc.image
     t1 = time.perf_counter()
-    ext = extract_network(work, **_extraction_kwargs(args))
+    ext = extract_network(work, **_extraction_kwargs(args), conductance=getattr(args, "conductance", None))
     t_ext = time.perf_counter() - t1
     net = ext.network
     return {
@@ -147,6 +154,7 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
         "_image": image,
         "source": str(source) if source is not None else _SAMPLE,
         "source_kind": "image",
+        "conductance": net.conduit_model,
         "shape": list(image.shape),
         "voxel_size_m": image.voxel_size,
         "porosity": porosity,

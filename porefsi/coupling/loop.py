@@ -300,7 +300,8 @@ class CoupledRun:
             self.n_extractions_reused += 1
         else:
             with self._update_clock("extract"):
-                ex = extract_network(percolating_cluster(img, p.case.image.axis).image)
+                ex = extract_network(percolating_cluster(img, p.case.image.axis).image,
+                                     conductance=p.case.network.conductance)
             self.n_extractions += 1
             if self.reuse_extractions:
                 if len(self._extractions) >= 4:

@@ -161,7 +161,7 @@ def build_problem(case: Case) -> CoupledProblem:
 
     with clock("extraction"):
         perc = percolating_cluster(img, case.image.axis)
-        ex = extract_network(perc.image)
+        ex = extract_network(perc.image, conductance=case.network.conductance)
 
     with clock("mesh"):
         sc = case.solid

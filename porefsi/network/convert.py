@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from porefsi.errors import InputError
+from porefsi.errors import InputError, NetworkError
 from porefsi.image.voxel_image import axis_index
-from porefsi.network.geometry import resistance_factors
-from porefsi.network.network import FACES, Network
+from porefsi.network.geometry import duct_lengths, resistance_factors
+from porefsi.network.network import CIRCLE_SHAPE_FACTOR, CONDUCTANCE_MODELS, FACES, Network
 
 __all__ = [
     "to_openpnm",
@@ -39,11 +39,10 @@ __all__ = [
     "CIRCLE_SHAPE_FACTOR",
 ]
 
-#: Version of the porefsi extras in ``NET.npz`` (``porefsi.format_version``).
-FORMAT_VERSION = 1
-
-#: Shape factor G = A / P^2 of a circular cross-section, 1 / (4 pi).
-CIRCLE_SHAPE_FACTOR = 1.0 / (4.0 * np.pi)
+#: Version of the porefsi extras in ``NET.npz`` (``porefsi.format_version``). Version 2 files carry
+#: measured shape factors in ``pore.shape_factor`` / ``throat.shape_factor``, ``porefsi.conductance``
+#: and ``porefsi.throat_duct_fraction``; version 1 files wrote the circle's G there (ignored).
+FORMAT_VERSION = 2
 
 _REQUIRED = ("pore.coords", "pore.diameter", "pore.volume", "throat.conns", "throat.diameter")
 _CONDUIT_PARTS = ("pore1", "throat", "pore2")
@@ -67,11 +66,15 @@ def to_openpnm(net: Network) -> dict[str, np.ndarray]:
         ``throat.diameter`` (Nt,) m; ``throat.length`` (Nt,) m, the cylinder part only;
         ``throat.conduit_lengths`` (Nt, 3) m, columns (pore 1 part, cylinder, pore 2 part);
         ``throat.total_length`` (Nt,) m, their sum; ``throat.volume`` (Nt,) m³;
-        ``throat.cross_sectional_area`` (Nt,) m²; ``throat.hydraulic_size_factors`` (Nt, 3) m⁴,
-        columns as ``throat.conduit_lengths``; ``pore.shape_factor`` and ``throat.shape_factor``
-        (circle, :math:`1/(4\pi)`); ``pore.all``, ``throat.all``; boundary labels ``pore.xmin`` ...
-        ``pore.zmax`` (Np,) bool; and the porefsi extras ``porefsi.voxel_size`` (m),
-        ``porefsi.shape`` (3,) int, ``porefsi.origin`` (3,) m, ``porefsi.format_version``.
+        ``throat.cross_sectional_area`` (Nt,) m² (``r² / (4 G)``, the circle's with no shape
+        factors); ``throat.hydraulic_size_factors`` (Nt, 3) m⁴, columns as
+        ``throat.conduit_lengths``, under the network's conduit model; ``pore.shape_factor`` and
+        ``throat.shape_factor`` (measured, or the circle's :math:`1/(4\pi)` when the network has
+        none); ``pore.all``, ``throat.all``; boundary labels ``pore.xmin`` ... ``pore.zmax`` (Np,)
+        bool; and the porefsi extras ``porefsi.voxel_size`` (m), ``porefsi.shape`` (3,) int,
+        ``porefsi.origin`` (3,) m, ``porefsi.format_version``, ``porefsi.has_shape_factors``
+        (bool), ``porefsi.conductance`` (str, empty for the default) and, when the network has
+        them, ``porefsi.throat_duct_fraction`` (Nt, 3).
 
     Notes
     -----
@@ -97,11 +100,14 @@ def to_openpnm(net: Network) -> dict[str, np.ndarray]:
     """
     tpl = net.throat_pore_length
     cl = np.column_stack([tpl[:, 0], net.throat_length, tpl[:, 1]])
+    shaped = net.has_shape_factors
+    tG = net.throat_shape_factor if shaped else np.full(net.n_throats, CIRCLE_SHAPE_FACTOR)
+    pG = net.pore_shape_factor if shaped else np.full(net.n_pores, CIRCLE_SHAPE_FACTOR)
     d: dict[str, np.ndarray] = {
         "pore.coords": net.pore_coords.copy(),
         "pore.diameter": 2.0 * net.pore_radius,
         "pore.volume": net.pore_volume.copy(),
-        "pore.shape_factor": np.full(net.n_pores, CIRCLE_SHAPE_FACTOR),
+        "pore.shape_factor": pG.copy(),
         "pore.all": np.ones(net.n_pores, dtype=bool),
         "throat.conns": net.throat_conns.astype(np.int64),
         "throat.diameter": 2.0 * net.throat_radius,
@@ -109,9 +115,9 @@ def to_openpnm(net: Network) -> dict[str, np.ndarray]:
         "throat.conduit_lengths": cl,
         "throat.total_length": cl.sum(axis=1),
         "throat.volume": net.throat_volume.copy(),
-        "throat.cross_sectional_area": np.pi * net.throat_radius**2,
+        "throat.cross_sectional_area": net.throat_radius**2 / (4.0 * tG),
         "throat.hydraulic_size_factors": 1.0 / resistance_factors(net),
-        "throat.shape_factor": np.full(net.n_throats, CIRCLE_SHAPE_FACTOR),
+        "throat.shape_factor": tG.copy(),
         "throat.all": np.ones(net.n_throats, dtype=bool),
     }
     for k, name in enumerate(FACES):
@@ -120,7 +126,42 @@ def to_openpnm(net: Network) -> dict[str, np.ndarray]:
     d["porefsi.shape"] = np.asarray(net.shape, dtype=np.int64)
     d["porefsi.origin"] = net.origin.copy()
     d["porefsi.format_version"] = np.int64(FORMAT_VERSION)
+    d["porefsi.has_shape_factors"] = np.bool_(shaped)
+    d["porefsi.conductance"] = np.str_(net.conductance or "")
+    if net.throat_duct_fraction is not None:
+        d["porefsi.throat_duct_fraction"] = net.throat_duct_fraction.copy()
     return d
+
+
+def _check_file_values(d: Mapping) -> None:
+    """Refuse NaN, infinite or non-positive sizes in a network file (one-line NetworkError).
+
+    The :class:`Network` checks the arrays it keeps; this names the *file key* and also checks
+    arrays it does not keep but a user may rely on (``throat.hydraulic_size_factors``).
+    """
+    checks = (
+        ("pore.diameter", "> 0"), ("pore.volume", "> 0"), ("throat.diameter", "> 0"),
+        ("throat.conduit_lengths", "> 0"), ("throat.conduit_lengths.pore1", "> 0"),
+        ("throat.conduit_lengths.throat", "> 0"), ("throat.conduit_lengths.pore2", "> 0"),
+        ("throat.hydraulic_size_factors", "> 0"), ("throat.volume", ">= 0"),
+        ("pore.shape_factor", "> 0"), ("throat.shape_factor", "> 0"),
+    )
+    for key, rule in checks:
+        if key not in d:
+            continue
+        try:
+            a = np.asarray(d[key], dtype=float)
+        except (TypeError, ValueError):
+            raise NetworkError(f"network key {key!r} is not numeric; re-extract the network") from None
+        bad = ~np.isfinite(a) | ((a < 0) if rule == ">= 0" else (a <= 0))
+        if bad.any():
+            flat = np.flatnonzero(bad.reshape(a.shape[0], -1).any(axis=1)) if a.ndim else np.array([0])
+            i = int(flat[0])
+            raise NetworkError(
+                f"network key {key!r} has {int(bad.sum())} entr{'y' if bad.sum() == 1 else 'ies'} that are NaN, "
+                f"infinite or not {rule} (first at row {i}: {a.reshape(a.shape[0], -1)[i].tolist() if a.ndim else a}); "
+                "re-extract the network from the image (porefsi extract) or repair that key"
+            )
 
 
 def _conduit_lengths(d: Mapping) -> np.ndarray | None:
@@ -162,6 +203,17 @@ def from_openpnm(d: Mapping, *, voxel_size: float | None = None, shape=None, ori
     ------
     InputError
         Naming every missing key, or the values the :class:`Network` validation rejects.
+    NetworkError
+        A size, length, volume, size factor or shape factor key holding NaN, infinite or
+        non-positive entries (:func:`_check_file_values`).
+
+    Notes
+    -----
+    Measured shape factors (``pore.shape_factor`` and ``throat.shape_factor``) are taken from
+    files written by porefsi format 2 with ``porefsi.has_shape_factors`` set and from files
+    without porefsi extras (e.g. OpenPNM's import of pnextract networks); porefsi format-1 files
+    wrote the circle's value there, which carries no measurement, so they load with the paper's
+    model as before.
     """
     if not isinstance(d, Mapping) and not hasattr(d, "keys"):
         raise InputError(f"expected a mapping of OpenPNM arrays, got {type(d).__name__}")
@@ -191,6 +243,7 @@ def from_openpnm(d: Mapping, *, voxel_size: float | None = None, shape=None, ori
     origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=float).copy()
     faces = np.column_stack([np.asarray(d[f"pore.{f}"], dtype=bool) for f in FACES])
     tv = d.get("throat.volume") if hasattr(d, "get") else None
+    _check_file_values(d)
     return Network(
         pore_coords=np.array(d["pore.coords"], dtype=float),
         pore_radius=0.5 * np.asarray(d["pore.diameter"], dtype=float),
@@ -204,7 +257,31 @@ def from_openpnm(d: Mapping, *, voxel_size: float | None = None, shape=None, ori
         shape=shp,
         origin=origin,
         throat_volume=None if tv is None else np.array(tv, dtype=float),
+        **_shape_extras(d),
     )
+
+
+def _shape_extras(d: Mapping) -> dict:
+    """Shape factors, duct fractions and conduit model of an OpenPNM-keyed mapping (see Notes above)."""
+    version = _scalar_extra(d, "porefsi.format_version")
+    if version is None:  # not a porefsi file: use the shape factors it holds
+        shaped = "pore.shape_factor" in d and "throat.shape_factor" in d
+    else:
+        flag = _scalar_extra(d, "porefsi.has_shape_factors")
+        shaped = int(version[0]) >= 2 and flag is not None and bool(flag[0])
+    out: dict = {}
+    if shaped:
+        out["throat_shape_factor"] = np.array(d["throat.shape_factor"], dtype=float)
+        out["pore_shape_factor"] = np.array(d["pore.shape_factor"], dtype=float)
+        if "porefsi.throat_duct_fraction" in d:
+            out["throat_duct_fraction"] = np.array(d["porefsi.throat_duct_fraction"], dtype=float)
+    model = _scalar_extra(d, "porefsi.conductance")
+    if model is not None and str(model[0]):
+        name = str(model[0])
+        if name not in CONDUCTANCE_MODELS:
+            raise InputError(f"porefsi.conductance is {name!r}; use one of {CONDUCTANCE_MODELS}")
+        out["conductance"] = name
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -320,8 +397,10 @@ def write_statoil(net: Network, prefix: str | os.PathLike, axis: str | int = "x"
     after the ``Nt`` internal throats. Such a boundary link has the pore's radius and, with ``d``
     the distance from the pore centre to the face (at least half a voxel), a pore-side length
     ``d/2``, a cylinder ``d/2``, a reservoir-side length 0 and volume 0. Coordinates are written
-    relative to the box corner (pnflow ignores an origin). Shape factors are the circle's
-    :math:`1/(4\pi)`; clay volumes 0. Values carry 17 significant digits, so :func:`read_statoil`
+    relative to the box corner (pnflow ignores an origin). Shape factors are the network's measured
+    ones and the lengths its shape-factor ducts (:func:`porefsi.network.geometry.duct_lengths`)
+    when its conduit model is ``"shape_factor"``; otherwise the circle's :math:`1/(4\pi)` and the
+    paper's lengths. Clay volumes 0. Values carry 17 significant digits, so :func:`read_statoil`
     recovers the internal network exactly (the four side-face labels other than ``axis``'s are not
     part of the format and come back ``False``).
 
@@ -348,17 +427,22 @@ def write_statoil(net: Network, prefix: str | os.PathLike, axis: str | int = "x"
     dbd = np.concatenate([d_in, d_out])
     bd_pores = np.concatenate([inl, out])
     radius = np.concatenate([net.throat_radius, net.pore_radius[bd_pores]])
-    l1 = np.concatenate([net.throat_pore_length[:, 0], np.zeros(bd_pores.size)])
-    l2 = np.concatenate([net.throat_pore_length[:, 1], 0.5 * dbd])
-    lt = np.concatenate([net.throat_length, 0.5 * dbd])
+    shaped = net.conduit_model == "shape_factor"
+    L = duct_lengths(net) if shaped else np.column_stack(
+        [net.throat_pore_length[:, 0], net.throat_length, net.throat_pore_length[:, 1]])
+    l1 = np.concatenate([L[:, 0], np.zeros(bd_pores.size)])
+    l2 = np.concatenate([L[:, 2], 0.5 * dbd])
+    lt = np.concatenate([L[:, 1], 0.5 * dbd])
+    tG = net.throat_shape_factor if shaped else np.full(net.n_throats, CIRCLE_SHAPE_FACTOR)
+    pG = net.pore_shape_factor if shaped else np.full(n_p, CIRCLE_SHAPE_FACTOR)
+    link_G = np.concatenate([tG, pG[bd_pores]])
     vol = np.concatenate([net.throat_volume, np.zeros(bd_pores.size)])
     n_all = p1.size
-    G = _fmt(CIRCLE_SHAPE_FACTOR)
     paths = [Path(f"{base}_{s}.dat") for s in ("link1", "link2", "node1", "node2")]
     with open(paths[0], "w") as f:
         f.write(f"{n_all}\n")
         for t in range(n_all):
-            f.write(f"{t + 1} {p1[t]} {p2[t]} {_fmt(radius[t])} {G} {_fmt(l1[t] + lt[t] + l2[t])}\n")
+            f.write(f"{t + 1} {p1[t]} {p2[t]} {_fmt(radius[t])} {_fmt(link_G[t])} {_fmt(l1[t] + lt[t] + l2[t])}\n")
     with open(paths[1], "w") as f:
         for t in range(n_all):
             f.write(f"{t + 1} {p1[t]} {p2[t]} {_fmt(l1[t])} {_fmt(l2[t])} {_fmt(lt[t])} {_fmt(vol[t])} 0\n")
@@ -383,7 +467,7 @@ def write_statoil(net: Network, prefix: str | os.PathLike, axis: str | int = "x"
             f.write(" ".join(tok) + "\n")
     with open(paths[3], "w") as f:
         for p in range(n_p):
-            f.write(f"{p + 1} {_fmt(net.pore_volume[p])} {_fmt(net.pore_radius[p])} {G} 0\n")
+            f.write(f"{p + 1} {_fmt(net.pore_volume[p])} {_fmt(net.pore_radius[p])} {_fmt(pG[p])} 0\n")
     return paths
 
 
@@ -491,4 +575,27 @@ def read_statoil(
         shape=tuple(shape),
         origin=org,
         throat_volume=link2[internal, 6],
+        **_statoil_shape_factors(link1[internal, 4], node2[:, 3]),
     )
+
+
+def _statoil_shape_factors(throat_G: np.ndarray, pore_G: np.ndarray) -> dict:
+    r"""Shape factors of Statoil files, unless every one is the circle's (no measurement: paper model).
+
+    pnextract writes measured values; porefsi before format 2 (and for paper-model networks) wrote
+    the circle's :math:`1/(4\pi)` everywhere. Values above the circle's (pnextract caps at 0.079)
+    are clipped to it.
+    """
+    G = np.concatenate([throat_G, pore_G])
+    if G.size == 0 or np.allclose(G, CIRCLE_SHAPE_FACTOR, rtol=1e-12, atol=0.0):
+        return {}
+    bad = ~np.isfinite(G) | (G <= 0)
+    if bad.any():
+        raise NetworkError(
+            f"Statoil files hold {int(bad.sum())} shape factor(s) that are NaN or <= 0; "
+            "re-extract the network or repair the shape-factor columns"
+        )
+    return {
+        "throat_shape_factor": np.minimum(throat_G, CIRCLE_SHAPE_FACTOR),
+        "pore_shape_factor": np.minimum(pore_G, CIRCLE_SHAPE_FACTOR),
+    }
