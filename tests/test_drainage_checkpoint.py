@@ -1,7 +1,6 @@
 """Checkpoints of a drainage run: a killed run resumes to the uninterrupted run's result, bit for bit."""
 
 import json
-import pickle
 
 import numpy as np
 import pytest
@@ -18,6 +17,13 @@ convert = pytest.importorskip("porefsi.network.convert")
 
 class _KilledError(Exception):
     """Stands in for the process being killed right after a checkpoint."""
+
+
+def _saved(path):
+    """The checkpoint at ``path`` as simulate_drainage would load it (whatever run it belongs to)."""
+    from porefsi.io.results import load_checkpoint
+
+    return ckpt.load(path, load_checkpoint(path)[1]["key"])
 
 
 def _rate_for_ca(net, fl, ca):
@@ -51,11 +57,10 @@ def test_resumed_run_equals_uninterrupted_bit_for_bit(case, tmp_path, solver):
     net, fl, rate, t_end = case
     kw = dict(rate=rate, t_end=t_end, times=[0.3 * t_end, 0.6 * t_end], solver=solver)
     ref = simulate_drainage(net, fl, **kw)
-    path = tmp_path / "run.pkl"
+    path = tmp_path / "run.npz"
     with pytest.raises(_KilledError):  # checkpoint after every event; killed after the 120th
         simulate_drainage(net, fl, checkpoint=path, checkpoint_every=1e-12, progress=_killer(120), **kw)
-    with open(path, "rb") as f:
-        saved = pickle.load(f)
+    saved = _saved(path)
     so = saved["sim"]._engine.solver
     assert so.method == solver and saved["sim"]._engine.n_events == 120
     if solver == "lowrank":  # the base factorisation travels as its recipe (values + column batches)
@@ -84,7 +89,7 @@ def test_stop_at_breakthrough_stops_at_the_breakthrough_event(case):
 
 def test_resume_refuses_missing_corrupt_and_foreign_checkpoints(case, tmp_path):
     net, fl, rate, t_end = case
-    path = tmp_path / "run.pkl"
+    path = tmp_path / "run.npz"
     with pytest.raises(InputError, match="no drainage checkpoint"):
         simulate_drainage(net, fl, rate=rate, t_end=t_end, checkpoint=path, resume=True)
     with pytest.raises(InputError, match="needs the checkpoint file"):
@@ -98,8 +103,8 @@ def test_resume_refuses_missing_corrupt_and_foreign_checkpoints(case, tmp_path):
             simulate_drainage(net, fl, checkpoint=path, resume=True, **other)
     with pytest.raises(InputError, match="different run"):
         simulate_drainage(net, Fluids(mu_n=2e-2), rate=rate, t_end=t_end, checkpoint=path, resume=True)
-    path.write_bytes(b"not a pickle")
-    with pytest.raises(InputError, match="not a readable drainage checkpoint"):
+    path.write_bytes(b"not a checkpoint")
+    with pytest.raises(InputError, match="not a usable drainage checkpoint"):
         simulate_drainage(net, fl, rate=rate, t_end=t_end, checkpoint=path, resume=True)
     with pytest.raises(InputError, match="needs a porefsi Network and Fluids"):
         simulate_drainage("net.npz", fl, rate=rate, checkpoint=path)
@@ -109,9 +114,13 @@ def test_resume_refuses_missing_corrupt_and_foreign_checkpoints(case, tmp_path):
         simulate_drainage(net, fl, rate=rate, t_end=t_end, checkpoint=path, checkpoint_every=0)
 
 
-def test_a_failed_checkpoint_write_keeps_the_previous_one(tmp_path, monkeypatch):
-    path = tmp_path / "c.pkl"
-    ckpt.save(path, "k", {"x": 1})
+def test_a_failed_checkpoint_write_keeps_the_previous_one(case, tmp_path, monkeypatch):
+    from porefsi.flow.drainage import DrainageSimulator
+
+    net, fl, rate, _ = case
+    sim = DrainageSimulator(net, fl, rate=rate)
+    path = tmp_path / "c.npz"
+    ckpt.save(path, "k", {"sim": sim, "snaps": [], "k": 1, "seconds": 0.0})
 
     from porefsi.io import results
 
@@ -120,9 +129,9 @@ def test_a_failed_checkpoint_write_keeps_the_previous_one(tmp_path, monkeypatch)
 
     monkeypatch.setattr(results.os, "fsync", broken)
     with pytest.raises(OSError):
-        ckpt.save(path, "k", {"x": 2})
+        ckpt.save(path, "k", {"sim": sim, "snaps": [], "k": 2, "seconds": 0.0})
     monkeypatch.undo()
-    assert ckpt.load(path, "k")["x"] == 1
+    assert ckpt.load(path, "k")["k"] == 1
 
 
 def test_cli_drainage_checkpoints_and_resumes(tmp_path, capsys):
@@ -134,7 +143,7 @@ def test_cli_drainage_checkpoints_and_resumes(tmp_path, capsys):
     assert main(argv) == 0
     cap = capsys.readouterr()
     first = json.loads(cap.out)
-    assert "checkpoint saved" in cap.err and (out / "drainage_checkpoint.pkl").is_file()
+    assert "checkpoint saved" in cap.err and (out / "drainage_checkpoint.npz").is_file()
     csv = (out / "drainage.csv").read_text()
     (out / "drainage.csv").unlink()
     assert main([*argv, "--resume"]) == 0  # from the final checkpoint: the same outputs again
@@ -168,7 +177,7 @@ def test_cli_run_killed_with_sigkill_resumes_to_the_uninterrupted_outputs(tmp_pa
     out = tmp_path / "killed"
     proc = subprocess.Popen(cmd(out, "--checkpoint-every", "0.05"), stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
-    ck_file = out / "drainage_checkpoint.pkl"
+    ck_file = out / "drainage_checkpoint.npz"
     deadline = time.monotonic() + 120
     while not ck_file.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -176,8 +185,7 @@ def test_cli_run_killed_with_sigkill_resumes_to_the_uninterrupted_outputs(tmp_pa
     proc.wait()
     if proc.returncode == 0:
         pytest.skip("the run finished before it could be killed")
-    with open(ck_file, "rb") as f:
-        events_at_kill = pickle.load(f)["sim"]._engine.n_events
+    events_at_kill = _saved(ck_file)["sim"]._engine.n_events
     res = subprocess.run(cmd(out, "--resume"), capture_output=True, text=True, check=True)
     first, again = json.loads(ref.stdout), json.loads(res.stdout)
     assert events_at_kill < first["n_events"]
@@ -196,7 +204,7 @@ def test_ctrl_c_saves_at_the_end_of_the_event_and_resumes_bit_for_bit(case, tmp_
     net, fl, rate, t_end = case
     kw = dict(rate=rate, t_end=t_end, solver="lowrank")
     ref = simulate_drainage(net, fl, **kw)
-    path = tmp_path / "run.pkl"
+    path = tmp_path / "run.npz"
     step = Engine.step
 
     def step_with_ctrl_c(self, t_target):  # Ctrl-C arrives during the 50th event
@@ -210,8 +218,7 @@ def test_ctrl_c_saves_at_the_end_of_the_event_and_resumes_bit_for_bit(case, tmp_
         simulate_drainage(net, fl, checkpoint=path, checkpoint_every=1e9, **kw)
     assert signal.getsignal(signal.SIGINT) is before  # the handler is restored
     monkeypatch.undo()
-    with open(path, "rb") as f:
-        saved = pickle.load(f)
+    saved = _saved(path)
     assert saved["sim"]._engine.n_events == 50  # the event in progress finished, then saved
     res = simulate_drainage(net, fl, checkpoint=path, resume=True, **kw)
     for k, v in ref.history.items():
@@ -233,7 +240,7 @@ def test_cli_ctrl_c_saves_and_says_how_to_resume(tmp_path):
            "-o", str(out), "--json", "--checkpoint-every", "0.05"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
-    while not (out / "drainage_checkpoint.pkl").exists() and proc.poll() is None and time.monotonic() < deadline:
+    while not (out / "drainage_checkpoint.npz").exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate()
@@ -255,7 +262,9 @@ def test_cli_fresh_run_removes_the_outputs_of_an_earlier_run_only(tmp_path, caps
     assert main(["drainage", str(path), "-o", str(out), "--snapshots", "4"]) == 0
     assert len(list(out.glob("snapshot_*.csv"))) == 4
     (out / "notes.txt").write_text("mine")
-    assert main(["drainage", str(path), "-o", str(out), "--snapshots", "2"]) == 0
+    assert main(["drainage", str(path), "-o", str(out), "--snapshots", "2"]) == 2  # refused: --overwrite
+    assert "--overwrite" in capsys.readouterr().err and len(list(out.glob("snapshot_*.csv"))) == 4
+    assert main(["drainage", str(path), "-o", str(out), "--snapshots", "2", "--overwrite"]) == 0
     assert sorted(f.name for f in out.glob("snapshot_*.csv")) == ["snapshot_0.csv", "snapshot_1.csv"]
     assert (out / "notes.txt").read_text() == "mine"
     capsys.readouterr()

@@ -349,6 +349,12 @@ def load_case(path: str | Path) -> Case:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{p}: not valid TOML ({exc})") from None
+    except UnicodeDecodeError as exc:
+        line = p.read_bytes()[: exc.start].count(b"\n") + 1
+        raise ConfigError(f"{p}: not UTF-8 text (byte {exc.object[exc.start]:#04x} on line {line}); save the case "
+                          "file as UTF-8 (TOML files are UTF-8)") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read case file {p}: {exc.strerror or exc}") from None
     case = case_from_dict(data, name=data.get("name", p.stem) if isinstance(data.get("name", ""), str)
                           else p.stem, where=str(p))
     # A relative image path is relative to the case file, so cases run from any directory.

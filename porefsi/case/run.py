@@ -14,10 +14,17 @@ Outputs in the run directory:
 - ``checkpoint.npz``: written atomically every ``output.checkpoint_every`` steps; ``--resume``
   continues from it and ends with the same results as an uninterrupted run.
 
-Every file is written atomically. A fresh run first removes the files an earlier run wrote in the
-directory (the names above; files of other names, e.g. a user's own figures, are kept); a resumed
-run removes the per-step files of the steps after its checkpoint (it rewrites them) and the
-figures (made again at the end).
+Every file is written atomically, with the user's umask. Nothing in the directory is touched
+before every input has been read and validated (case, image, crop, network, mesh, the checkpoint
+and its case): a run that fails there leaves the directory as it found it. A fresh run refuses a
+directory that holds a finished or resumable run unless ``overwrite`` (CLI ``--overwrite``), and
+then removes the files an earlier run wrote there (the names above; files of other names, e.g. a
+user's own figures, are kept); a resumed run removes the per-step files of the steps after its
+checkpoint (it rewrites them) and the figures (made again at the end); resuming a completed run
+changes nothing. A run holds an exclusive lock on the directory (:func:`porefsi.io.rundir.lock`):
+a second run into it fails at once. The first Ctrl-C or SIGTERM ends the run after the current
+exchange step, with a checkpoint and ``summary.json`` status ``"interrupted"`` and the command
+that resumes it.
 """
 
 from __future__ import annotations
@@ -25,20 +32,22 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
-import re
+import math
 import sys
 import time
+import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from porefsi._version import __version__
-from porefsi.case.config import Case, case_from_dict, case_to_dict, case_to_toml
+from porefsi.case import _rundir as _rd
+from porefsi.case.config import Case, case_to_dict, case_to_toml
 from porefsi.coupling.loop import TIMESERIES_COLUMNS, CoupledRun, ExchangeRecord
 from porefsi.coupling.problem import build_problem
-from porefsi.errors import ConfigError
-from porefsi.io import results
+from porefsi.errors import InputError, PorefsiError
+from porefsi.io import interrupt, results, rundir
 from porefsi.io.network_vtk import write_network_vtp
 
 __all__ = ["run_case", "RunOutput"]
@@ -51,10 +60,11 @@ class RunOutput:
     summary: dict
     directory: Path
     timeseries: dict
+    note: str = ""  # e.g. that a resumed run was already complete
 
 
 class _Progress:
-    """A one-line progress bar with ETA on stderr (only when it is a terminal, or when forced).
+    """Progress on stderr: a redrawn bar with ETA (a terminal), or plain lines (a batch log).
 
     Parameters
     ----------
@@ -67,11 +77,15 @@ class _Progress:
         the time per step *of this process* times the steps left.
     stream : file, optional
         Where to draw (default ``sys.stderr`` at the time of each update).
+    lines : bool, default False
+        Instead of the bar, one line per exchange step (at most one per
+        :data:`LINE_SECONDS`, and always the last), for logs of batch jobs.
     """
 
-    def __init__(self, total: int, enabled: bool, start: int = 0, stream=None):
-        self.total, self.enabled, self.start, self.stream = total, enabled, start, stream
+    def __init__(self, total: int, enabled: bool, start: int = 0, stream=None, lines: bool = False):
+        self.total, self.enabled, self.start, self.stream, self.lines = total, enabled, start, stream, lines
         self.t0 = time.perf_counter()
+        self._last_line = -math.inf
 
     def update(self, done: int, t: float, extra: str = "") -> None:
         """Redraw after ``done`` of ``total`` steps, at simulated time ``t`` (s)."""
@@ -80,6 +94,13 @@ class _Progress:
         out = self.stream if self.stream is not None else sys.stderr
         el = time.perf_counter() - self.t0
         eta = el / max(done - self.start, 1) * (self.total - done)
+        if self.lines:
+            if done == self.total or el - self._last_line >= LINE_SECONDS:
+                self._last_line = el
+                out.write(f"porefsi run: step {done}/{self.total}, t = {t:.4g} s, {extra}, {el:.1f} s, "
+                          f"ETA {eta:.0f} s\n")
+                out.flush()
+            return
         bar = "#" * int(30 * done / self.total)
         out.write(f"\r[{bar:<30}] {done}/{self.total} t={t:.3g} s  {el:6.1f} s, ETA {eta:6.1f} s {extra}")
         if done == self.total:
@@ -87,48 +108,12 @@ class _Progress:
         out.flush()
 
 
-#: Files porefsi writes in a run directory, by sub-folder (regular expressions on the name; a
-#: group ``step`` marks per-step files). Only these are ever removed, never other files.
-_OUTPUT_FILES = {
-    ".": (r"checkpoint\.npz", r"summary\.json", r"timeseries\.csv", r"solid\.pvd", r"network\.pvd"),
-    "vtk": (r"solid_(?P<step>\d{4,})\.vtu", r"network_(?P<step>\d{4,})\.vtp"),
-    "pores": (r"step_(?P<step>\d{4,})\.npz", r"psd_(?P<step>\d{4,})\.csv"),
-    "figures": (r"timeseries\.png", r"pore_size_distribution\.png",
-                r"(drainage|displacement|pore_force|von_mises)_t\d{3,}_\d{3}s\.png"),
-}
+#: Least wall seconds between two progress lines of a run whose stderr is not a terminal.
+LINE_SECONDS = 1.0
 #: Number of pore-size bins of ``pores/psd_NNNN.csv``.
 PSD_BINS = 30
 #: The bins span [0, PSD_SPAN x the largest pore radius of the reference network].
 PSD_SPAN = 1.5
-
-
-def _clear_outputs(out: Path, after_step: int | None = None) -> list[Path]:
-    """Remove the files porefsi wrote in ``out``; return them.
-
-    A fresh run (``after_step`` None) removes all of them; a resumed run only the per-step files
-    of the steps after ``after_step`` and the figures. The temporary files of atomic writes a
-    killed run left go too. Files of other names are never touched.
-    """
-    removed = []
-    for sub, patterns in _OUTPUT_FILES.items():
-        d = out / sub
-        if not d.is_dir():
-            continue
-        for f in d.iterdir():
-            if not f.is_file():
-                continue
-            tmp = re.fullmatch(r"\.(?P<name>.+)\.[^.]+\.tmp", f.name)  # atomic_write_bytes' temporaries
-            name = tmp["name"] if tmp else f.name
-            m = next((m for m in (re.fullmatch(pat, name) for pat in patterns) if m), None)
-            if m is None:
-                continue
-            step = m.groupdict().get("step")
-            if after_step is None or tmp or sub == "figures" or (step is not None and int(step) > after_step):
-                f.unlink()
-                removed.append(f)
-        if sub != "." and after_step is None and not any(d.iterdir()):
-            d.rmdir()
-    return removed
 
 
 def _psd_edges(net) -> np.ndarray:
@@ -203,9 +188,10 @@ def _figures(out: Path, ts: dict, snapshots: list, run: CoupledRun, progress: bo
     return [str(p.relative_to(out)) for p in made]
 
 
-def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False, progress: bool | None = None,
-             figures: bool | None = None, on_record: Callable[[ExchangeRecord], None] | None = None,
-             stop_after: int | None = None, reuse_extractions: bool = True) -> RunOutput:
+def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False, overwrite: bool = False,
+             force: bool = False, progress: bool | None = None, figures: bool | None = None,
+             on_record: Callable[[ExchangeRecord], None] | None = None, stop_after: int | None = None,
+             reuse_extractions: bool = True) -> RunOutput:
     """Run ``case`` and write its results to ``out`` (default ``case.output.dir``).
 
     Parameters
@@ -215,8 +201,16 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
         Run directory.
     resume : bool
         Continue from ``out/checkpoint.npz`` (the case must be the one saved in ``out/case.toml``).
+        Resuming a completed run changes nothing and returns its summary.
+    overwrite : bool
+        A fresh run into a directory that holds a run (a checkpoint or ``summary.json``) replaces
+        that run's results; without it such a run is refused.
+    force : bool
+        Run a case past the size limits (:data:`porefsi.case._rundir.MAX_STEPS` exchange steps,
+        :data:`porefsi.case._rundir.MAX_OUTPUT_BYTES` of outputs, the disk's free space).
     progress : bool, optional
-        Progress bar on stderr (default: when stderr is a terminal).
+        Progress on stderr: True a redrawn bar, False none; default a bar when stderr is a
+        terminal, else one line per exchange step (batch logs).
     figures : bool, optional
         Override ``case.output.figures``.
     on_record : callable, optional
@@ -231,12 +225,18 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     Raises
     ------
     ConfigError
-        ``resume`` without a checkpoint, or with a different case.
+        ``resume`` without a checkpoint, or with a different case; a case past the size limits.
+    InputError
+        ``out`` unusable (a file, under a file, read-only) or holding a run (without
+        ``overwrite``); a damaged checkpoint; another process running in ``out``
+        (:class:`porefsi.io.rundir.RunLockedError`); a write failing (full disk: the last
+        checkpoint is kept).
     PorefsiError
         A failure of the run (solver libraries' exceptions arrive as ``ConvergenceError``).
-        On *any* exception (also a bug's or ``KeyboardInterrupt``) the last checkpoint and the
-        outputs so far are kept, ``summary.json`` records ``status`` (``"failed"`` or
-        ``"interrupted"``) and the error, and the exception is re-raised.
+        Once the run has started writing, on *any* exception (also a bug's or
+        ``KeyboardInterrupt``) the last checkpoint and the outputs so far are kept,
+        ``summary.json`` records ``status`` (``"failed"`` or ``"interrupted"``), the error and
+        the resume command, and the exception is re-raised.
 
     Notes
     -----
@@ -249,47 +249,76 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     over a resumed run like the totals).
     """
     clock = _RunClock(time.perf_counter(), time.process_time())
-    out = Path(out if out is not None else case.output.dir)
-    out.mkdir(parents=True, exist_ok=True)
-    ckpt = out / "checkpoint.npz"
-    progress = sys.stderr.isatty() if progress is None else progress
-    figures = case.output.figures if figures is None else figures
+    out = rundir.check_output_dir(Path(out if out is not None else case.output.dir))
+    # 1. read and validate everything; nothing in ``out`` changes before the lock below
+    saved = None
     if resume:
-        if not ckpt.is_file():
-            raise ConfigError(f"--resume: no checkpoint in {str(out)!r}; run without --resume to start")
-        arrays, meta = results.load_checkpoint(ckpt)
-        saved = case_from_dict(meta["case"], name=meta["case"].get("name", "case"))
-        if case_to_dict(saved) != case_to_dict(case):
-            raise ConfigError(f"--resume: the case differs from the one that started {str(out)!r}; "
-                              "resume with the same case file or start a new run directory")
-        clock.wall_before = float(meta.get("wall_seconds", 0.0))
-        clock.cpu_before = float(meta.get("process_cpu_seconds", 0.0))
-        # the steps after the checkpoint are redone: their files go (they are rewritten)
-        _clear_outputs(out, after_step=int(meta["step_index"]))
+        saved = _rd.load_resume(out, case)
+        done = _rd.read_completed(out, case, saved[1])
+        if done is not None:  # a completed run: nothing to do, nothing to change
+            return RunOutput(done[0], out, done[1], note=f"{out} already holds the completed run; nothing to do")
     else:
-        _clear_outputs(out)
-    results.atomic_write_text(out / "case.toml", case_to_toml(case))
+        _rd.refuse_existing(out, overwrite)
+        _rd.check_steps(case, force)
+    problem = build_problem(case)
+    state = _restore(problem, out, saved, reuse_extractions) if saved else None
+    _rd.check_output_volume(out, case, problem.network.n_pores, problem.mesh.n_nodes, force or resume)
+    # 2. the directory is ours: clear what goes, then run
+    with rundir.lock(out), rundir.output_errors(out):
+        if saved is None:
+            _rd.refuse_existing(out, overwrite)  # again: a run may have finished there meanwhile
+            _rd.clear_outputs(out)
+        else:
+            clock.wall_before = float(saved[1].get("wall_seconds", 0.0))
+            clock.cpu_before = float(saved[1].get("process_cpu_seconds", 0.0))
+            # the steps after the checkpoint are redone: their files go (they are rewritten)
+            _rd.clear_outputs(out, after_step=int(saved[1]["step_index"]))
+        results.atomic_write_text(out / "case.toml", case_to_toml(case))
+        opts = dict(progress=progress, figures=case.output.figures if figures is None else figures,
+                    on_record=on_record, stop_after=stop_after, reuse_extractions=reuse_extractions)
+        return _execute(case, out, problem, state, clock, opts)
 
-    run = None
-    rows: list = []
-    setup_seconds: dict = {}
+
+def _restore(problem, out: Path, saved: tuple[dict, dict], reuse_extractions: bool) -> dict:
+    """The run state of a checkpoint, validated against ``problem`` (reads only)."""
+    arrays, meta = saved
+    ckpt = out / _rd.CHECKPOINT
+    try:
+        run = CoupledRun.restore(problem, arrays, meta, reuse_extractions=reuse_extractions)
+        # JSON keeps NaN as null: give the restored rows their NaN back
+        rows = [{k: float("nan") if v is None else v for k, v in r.items()} for r in meta["rows"]]
+        snapshots = _load_snapshots(arrays, meta)
+        setup = (dict(meta["setup_seconds"]), dict(meta.get("setup_cpu_seconds", {})))
+    except (KeyError, ValueError, TypeError, IndexError, AttributeError, PorefsiError) as exc:
+        raise InputError(f"{ckpt} is not a usable run checkpoint: damaged, or written by another porefsi version "
+                         f"({type(exc).__name__}: {exc}); run again without --resume (with --overwrite) to start "
+                         "over") from None
+    series = {}
+    for k in ("solid", "network"):
+        try:
+            series[k] = results.PvdSeries.read(out / f"{k}.pvd")
+        except (OSError, ValueError, TypeError, ET.ParseError) as exc:
+            raise InputError(f"{out / f'{k}.pvd'} is damaged ({exc}); delete it to resume without the earlier "
+                             "snapshots in the series, or run again with --overwrite") from None
+    return {"run": run, "rows": rows, "snapshots": snapshots, "series": series, "setup": setup}
+
+
+def _execute(case: Case, out: Path, problem, state: dict | None, clock: _RunClock, opts: dict) -> RunOutput:
+    """The loop of :func:`run_case` in a validated, locked, cleared directory."""
+    progress, on_record, stop_after = opts["progress"], opts["on_record"], opts["stop_after"]
+    ckpt = out / _rd.CHECKPOINT
+    run, rows, setup_seconds = None, [], {}
     status, error = "completed", None
     try:
-        problem = build_problem(case)
         edges = _psd_edges(problem.network)  # fixed pore-size bins of the whole run
-        if resume:
-            run = CoupledRun.restore(problem, arrays, meta, reuse_extractions=reuse_extractions)
-            # JSON keeps NaN as null: give the restored rows their NaN back
-            rows = [{k: float("nan") if v is None else v for k, v in r.items()} for r in meta["rows"]]
-            snapshots = _load_snapshots(arrays, meta)
-            series = {k: results.PvdSeries.read(out / f"{k}.pvd") for k in ("solid", "network")}
+        if state is not None:
+            run, rows, snapshots, series = state["run"], state["rows"], state["snapshots"], state["series"]
             for s in series.values():
                 s.truncate(run.t)
-            setup_seconds = meta["setup_seconds"]
-            clock.setup_cpu = dict(meta.get("setup_cpu_seconds", {}))
+            setup_seconds, clock.setup_cpu = state["setup"]
         else:
-            run = CoupledRun(problem, reuse_extractions=reuse_extractions)
-            rows, snapshots = [], []
+            run = CoupledRun(problem, reuse_extractions=opts["reuse_extractions"])
+            snapshots = []
             series = {k: results.PvdSeries(out / f"{k}.pvd") for k in ("solid", "network")}
             setup_seconds = dict(problem.seconds)
             clock.setup_cpu = dict(problem.cpu_seconds)
@@ -299,37 +328,43 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             if case.output.vtk:
                 _write_snapshot(out, rec0, run, series)
             snapshots.append(_snapshot(rec0))
-        bar = _Progress(run.n_steps, progress, start=run.step_index)
+        tty = sys.stderr.isatty()
+        bar = _Progress(run.n_steps, progress is not False, start=run.step_index, lines=progress is None and not tty)
         n_done = 0
-        for rec in run.steps():
-            rows.append(rec.row)
-            _write_pores(out, rec, edges)
-            t_prev = rows[-2]["time_s"]
-            last = run.step_index == run.n_steps
-            if _snapshot_due(case, t_prev, rec.t, last):
-                if case.output.vtk:
-                    _write_snapshot(out, rec, run, series)
-                snapshots.append(_snapshot(rec))
-            results.write_csv(out / "timeseries.csv", _columns(rows))
-            if on_record is not None:
-                on_record(rec)
-            if run.step_index % case.output.checkpoint_every == 0 or last:
-                _save(ckpt, run, case, rows, snapshots, setup_seconds, clock)
-            bar.update(run.step_index, rec.t, f"Sw={rec.row['sw']:.3f}")
-            n_done += 1
-            if stop_after is not None and n_done >= stop_after:
-                status = "interrupted"
-                break
+        with interrupt.deferred() as signalled:  # Ctrl-C / SIGTERM: finish the step, save, stop
+            for rec in run.steps():
+                rows.append(rec.row)
+                _write_pores(out, rec, edges)
+                t_prev = rows[-2]["time_s"]
+                last = run.step_index == run.n_steps
+                if _snapshot_due(case, t_prev, rec.t, last):
+                    if case.output.vtk:
+                        _write_snapshot(out, rec, run, series)
+                    snapshots.append(_snapshot(rec))
+                results.write_csv(out / "timeseries.csv", _columns(rows))
+                if on_record is not None:
+                    on_record(rec)
+                if run.step_index % case.output.checkpoint_every == 0 or last or signalled():
+                    _save(ckpt, run, case, rows, snapshots, setup_seconds, clock)
+                bar.update(run.step_index, rec.t, f"Sw={rec.row['sw']:.3f}")
+                n_done += 1
+                if signalled() and not last:
+                    raise KeyboardInterrupt(
+                        f"{interrupt.SIGNAL_NAMES.get(signalled(), 'a signal')} at exchange step {run.step_index} of "
+                        f"{run.n_steps}; saved to {ckpt}: continue with {_rd.resume_command(out)}")
+                if stop_after is not None and n_done >= stop_after:
+                    status = "interrupted"
+                    break
     except BaseException as exc:
-        # Whatever stopped the run (a porefsi error, a solver library's, a bug, Ctrl-C): record it
-        # next to the last checkpoint (kept as it was) and the outputs so far, then re-raise.
+        # Whatever stopped the run (a porefsi error, a solver library's, a bug, Ctrl-C, SIGTERM, a full
+        # disk): record it next to the last checkpoint (kept as it was) and the outputs so far, re-raise.
         status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
         error = f"{type(exc).__name__}: {exc}"
         with contextlib.suppress(Exception):  # never hide the original error behind a write error
             _write_summary(out, case, run, rows, setup_seconds, status, error, [], clock)
         raise
     ts = _columns(rows)
-    made = _figures(out, ts, snapshots, run, progress) if (figures and status == "completed") else []
+    made = _figures(out, ts, snapshots, run, progress) if (opts["figures"] and status == "completed") else []
     summary = _write_summary(out, case, run, rows, setup_seconds, status, error, made, clock)
     return RunOutput(summary, out, ts)
 
@@ -429,6 +464,8 @@ def _write_summary(out, case, run: CoupledRun | None, rows, setup_seconds, statu
             "reuse_extractions": run.reuse_extractions,
             "seconds": dict(run.update_seconds), "cpu_seconds": dict(run.update_cpu_seconds)},
         "figures": figures,
+        "resume_command": _rd.resume_command(out) if status != "completed" and (out / _rd.CHECKPOINT).is_file()
+        else None,
     }
     results.write_json(out / "summary.json", summary)
     return json.loads(json.dumps(results.jsonable(summary)))

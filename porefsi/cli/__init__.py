@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 
 from porefsi._version import __version__
@@ -23,6 +24,8 @@ _MODULES = ("run", "extract", "drainage", "solid")
 EXIT_OK = 0
 EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130
+#: Exit status after SIGTERM (a batch scheduler's time limit): 128 + 15, as the shell reports it.
+EXIT_TERMINATED = 143
 #: BLAS threads while a command runs.
 BLAS_THREADS = 1
 
@@ -58,7 +61,10 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code.
 
     Errors that porefsi raises on purpose print one line ``porefsi: error: ...`` to stderr and
-    return 2; argparse usage errors also return 2.
+    return 2; argparse usage errors also return 2. So do the operating system's errors on the
+    user's files that reach this point (a full disk, a read-only folder) and running out of
+    memory: never a traceback for a problem with the user's files or options. Ctrl-C returns
+    130 and SIGTERM (a batch scheduler's time limit), which is handled like Ctrl-C, 143.
 
     The command runs with BLAS pinned to one thread (threadpoolctl; restored on return): the
     solvers' dot products and small dense operations are on vectors of 1e4-1e6 entries, where
@@ -75,8 +81,12 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_OK
+    from porefsi.io import interrupt
+    from porefsi.io.rundir import describe_os_error
+
+    interrupt.reset()
     try:
-        with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        with threadpool_limits(limits=BLAS_THREADS, user_api="blas"), interrupt.terminate_like_interrupt():
             code = int(args.func(args) or 0)
         sys.stdout.flush()  # a reader that closed early shows up here, not at interpreter exit
         return code
@@ -85,11 +95,18 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_ERROR
     except KeyboardInterrupt as exc:  # a run that saved itself says where and how to continue
         print(f"porefsi: interrupted{f': {exc}' if str(exc) else ''}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_TERMINATED if interrupt.last_signal() == signal.SIGTERM else EXIT_INTERRUPTED
+    except MemoryError:
+        print("porefsi: error: out of memory; use a smaller image (crop it, [image] crop), a coarser mesh "
+              "(--coarsen / [solid] coarsen) or a machine with more memory", file=sys.stderr)
+        return EXIT_ERROR
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early: not an error of ours
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # Python would otherwise report it again at exit
         return EXIT_OK
+    except OSError as exc:  # the operating system refused a file operation (disk full, read-only, ...)
+        print(f"porefsi: error: {describe_os_error(exc)}", file=sys.stderr)
+        return EXIT_ERROR
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -7,7 +7,7 @@ outlet node pressure, the outlet being at 0 by construction), ``DIR/invasion.csv
 ``DIR/snapshot_<k>.csv`` (``pore,time_s,pressure_pa,fluid_pressure_pa,nw_saturation,state``) and
 ``DIR/pc_s.png``: the dynamic Pc–S curve next to the quasi-static one (invasion percolation with
 trapping on the same network and fluids). With ``-o DIR`` the run is saved to
-``DIR/drainage_checkpoint.pkl`` every ``--checkpoint-every`` seconds (a progress line on stderr
+``DIR/drainage_checkpoint.npz`` every ``--checkpoint-every`` seconds (a progress line on stderr
 each time); ``--resume`` continues a killed run from it, to the same result bit for bit. A
 fresh run first removes what an earlier run wrote in DIR (those file names only).
 """
@@ -28,7 +28,7 @@ from porefsi.errors import InputError
 __all__ = ["register", "run", "write_pc_s", "CHECKPOINT"]
 
 #: Checkpoint file name inside the output directory.
-CHECKPOINT = "drainage_checkpoint.pkl"
+CHECKPOINT = "drainage_checkpoint.npz"
 
 
 def register(subparsers) -> None:
@@ -56,54 +56,98 @@ def register(subparsers) -> None:
     p.add_argument("-o", "--output", default=None, metavar="DIR",
                    help="directory for the CSV outputs and the Pc-S figure pc_s.png")
     p.add_argument("--checkpoint-every", type=positive_float, default=60.0, metavar="SECONDS",
-                   help="with -o: save the run to DIR/drainage_checkpoint.pkl every SECONDS of wall time "
+                   help="with -o: save the run to DIR/drainage_checkpoint.npz every SECONDS of wall time "
                    "(default 60) and report progress on stderr")
     p.add_argument("--resume", action="store_true",
-                   help="continue a killed run from DIR/drainage_checkpoint.pkl (same arguments)")
+                   help="continue a killed or interrupted run from DIR/drainage_checkpoint.npz (same arguments)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the results of an earlier drainage run in DIR (refused without it), once the "
+                   "inputs have been read and checked")
+    p.add_argument("--force", action="store_true", help=f"allow more than {MAX_SNAPSHOTS} --snapshots")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the drainage described by ``args``; write the outputs; print the summary."""
+    """Run the drainage described by ``args``; write the outputs; print the summary.
+
+    Every input (options, network or image, the checkpoint of ``--resume`` and its fingerprint)
+    is read and checked before anything in ``-o DIR`` changes; the outputs are written
+    atomically at the end.
+    """
     from porefsi.cli._extract import network_from_args
-    from porefsi.flow.drainage import HISTORY_COLUMNS, simulate_drainage
+    from porefsi.flow.drainage import DrainageSimulator, simulate_drainage
     from porefsi.flow.fluids import Fluids
+    from porefsi.io import rundir
 
     fluids = Fluids(mu_w=args.mu_w, mu_n=args.mu_n, sigma=args.sigma, theta_deg=args.theta)
     if args.snapshots < 0:
         raise InputError(f"--snapshots must be >= 0, got {args.snapshots}")
+    if args.snapshots > MAX_SNAPSHOTS and not args.force:
+        raise InputError(f"--snapshots {args.snapshots} would write {args.snapshots} files of one row per pore "
+                         f"(limit {MAX_SNAPSHOTS}); pass fewer, or --force")
     if args.resume and not args.output:
-        raise InputError("--resume needs -o DIR: the checkpoint is DIR/drainage_checkpoint.pkl")
+        raise InputError(f"--resume needs -o DIR: the checkpoint is DIR/{CHECKPOINT}")
+    if args.resume and args.overwrite:
+        raise InputError("--resume continues the run in DIR and --overwrite replaces it: pass one of them")
     t0 = time.perf_counter()
+    out = rundir.check_output_dir(args.output) if args.output else None
+    if out is not None and not args.resume:
+        _refuse_existing(out, args.overwrite)
     net = network_from_args(args)
     times = np.linspace(0, args.t_end, args.snapshots + 1)[1:] if args.snapshots else None
-    out = None
-    ckpt = {}
-    if args.output:
-        out = Path(args.output)
-        out.mkdir(parents=True, exist_ok=True)
-        _clear_outputs(out, keep_checkpoint=args.resume)
-        ckpt = dict(checkpoint=out / CHECKPOINT, checkpoint_every=args.checkpoint_every, resume=args.resume,
-                    progress=_progress(args.t_end))
-    t_sim = time.perf_counter()
-    res = simulate_drainage(net, fluids, rate=args.rate, t_end=args.t_end, times=times, axis=args.axis, **ckpt)
-    t_sim = time.perf_counter() - t_sim
-    if out is not None:
-        h = res.history
-        np.savetxt(out / "drainage.csv", np.column_stack([h[k] for k in HISTORY_COLUMNS]), delimiter=",",
-                   header=",".join(HISTORY_COLUMNS), comments="", fmt="%.10g")
-        with open(out / "invasion.csv", "w") as f:
-            f.write("pore,time_s\n")
-            for i, t in enumerate(res.invasion_time):
-                f.write(f"{i},{'' if np.isnan(t) else repr(float(t))}\n")
-        for k, s in enumerate(res.snapshots):
-            cols = [np.arange(net.n_pores), np.full(net.n_pores, s.t), s.pressure, s.fluid_pressure,
-                    s.nw_saturation, s.pore_state]
-            np.savetxt(out / f"snapshot_{k}.csv", np.column_stack(cols), delimiter=",",
-                       header="pore,time_s,pressure_pa,fluid_pressure_pa,nw_saturation,state", comments="",
-                       fmt=["%d", "%.10g", "%.10g", "%.10g", "%.10g", "%d"])
-        write_pc_s(out / "pc_s.png", net, fluids, args.axis, args.rate, res)
+    if out is None:
+        res = simulate_drainage(net, fluids, rate=args.rate, t_end=args.t_end, times=times, axis=args.axis)
+        return _report(args, net, res, None, t0)
+    if not args.resume:  # fails here (no spanning path, bad options) before the folder is touched
+        DrainageSimulator(net, fluids, rate=args.rate, axis=args.axis)
+    with rundir.lock(out), rundir.output_errors(out):
+        if not args.resume:
+            _refuse_existing(out, args.overwrite)  # again: a run may have finished there meanwhile
+            _clear_outputs(out)
+        # a resumed run reads and checks its checkpoint before it changes anything
+        res = simulate_drainage(net, fluids, rate=args.rate, t_end=args.t_end, times=times, axis=args.axis,
+                                checkpoint=out / CHECKPOINT, checkpoint_every=args.checkpoint_every,
+                                resume=args.resume, progress=_progress(args.t_end))
+        _write_outputs(out, net, fluids, args, res)
+    return _report(args, net, res, out, t0)
+
+
+#: Most snapshot files ``--snapshots`` writes without ``--force``.
+MAX_SNAPSHOTS = 1000
+
+
+def _write_outputs(out: Path, net, fluids, args, res) -> None:
+    """drainage.csv, invasion.csv, snapshot_<k>.csv (stale extra ones removed), pc_s.png; atomically."""
+    import io
+
+    from porefsi.flow.drainage import HISTORY_COLUMNS
+    from porefsi.io.results import atomic_path, atomic_write_text
+
+    def table(columns, header, fmt="%.10g") -> str:
+        buf = io.StringIO()
+        np.savetxt(buf, np.column_stack(columns), delimiter=",", header=header, comments="", fmt=fmt)
+        return buf.getvalue()
+
+    h = res.history
+    atomic_write_text(out / "drainage.csv", table([h[k] for k in HISTORY_COLUMNS], ",".join(HISTORY_COLUMNS)))
+    atomic_write_text(out / "invasion.csv", "pore,time_s\n" + "".join(
+        f"{i},{'' if np.isnan(t) else repr(float(t))}\n" for i, t in enumerate(res.invasion_time)))
+    for k, s in enumerate(res.snapshots):
+        cols = [np.arange(net.n_pores), np.full(net.n_pores, s.t), s.pressure, s.fluid_pressure,
+                s.nw_saturation, s.pore_state]
+        atomic_write_text(out / f"snapshot_{k}.csv", table(
+            cols, "pore,time_s,pressure_pa,fluid_pressure_pa,nw_saturation,state",
+            fmt=["%d", "%.10g", "%.10g", "%.10g", "%.10g", "%d"]))
+    for f in out.glob("snapshot_*.csv"):  # an earlier run's extra snapshots (this one wrote fewer)
+        m = re.fullmatch(r"snapshot_(\d+)\.csv", f.name)
+        if m and int(m[1]) >= len(res.snapshots):
+            f.unlink()
+    with atomic_path(out / "pc_s.png") as tmp:
+        write_pc_s(tmp, net, fluids, args.axis, args.rate, res)
+
+
+def _report(args, net, res, out, t0) -> int:
     c = res.counters
     summary = {
         "n_pores": net.n_pores, "n_dropped_pores": res.n_dropped,
@@ -118,21 +162,30 @@ def run(args: argparse.Namespace) -> int:
 
 
 #: Files this command writes in its output directory (only these are ever removed).
-_OUTPUTS = re.compile(r"drainage\.csv|invasion\.csv|pc_s\.png|snapshot_\d+\.csv|drainage_checkpoint\.pkl")
+_OUTPUTS = re.compile(r"drainage\.csv|invasion\.csv|pc_s\.png|snapshot_\d+\.csv|drainage_checkpoint\.(npz|pkl)")
 #: A temporary file of :func:`porefsi.io.results.atomic_write_bytes` that a killed run left.
-_TEMPORARY = re.compile(r"\.(?P<name>.+)\.[^.]+\.tmp")
+_TEMPORARY = re.compile(r"\.(?P<name>.+?)\.[^.]+\.tmp(\.[^.]+)?")
 
 
-def _clear_outputs(out: Path, keep_checkpoint: bool) -> None:
-    """Remove the files an earlier run wrote in ``out`` (a resumed run keeps its checkpoint).
+def _refuse_existing(out: Path, overwrite: bool) -> None:
+    """Refuse a fresh run into a folder holding a drainage run's results, unless ``overwrite``."""
+    if overwrite or not out.is_dir():
+        return
+    held = [n for n in (CHECKPOINT, "drainage_checkpoint.pkl", "drainage.csv") if (out / n).is_file()]
+    if held:
+        raise InputError(f"output folder {out} already holds a drainage run ({', '.join(held)}): continue it with "
+                         "--resume (same options), pass --overwrite to replace its results, or pass another -o DIR")
 
-    Without this, a run with fewer ``--snapshots`` would leave the earlier run's extra snapshot
-    files next to its own. Files of other names are never touched.
+
+def _clear_outputs(out: Path) -> None:
+    """Remove the files an earlier run wrote in ``out`` (and temporaries a killed run left).
+
+    Files of other names are never touched.
     """
     for f in out.iterdir():
         tmp = _TEMPORARY.fullmatch(f.name)
         name = tmp["name"] if tmp else f.name
-        if f.is_file() and _OUTPUTS.fullmatch(name) and (tmp or not (keep_checkpoint and name == CHECKPOINT)):
+        if f.is_file() and _OUTPUTS.fullmatch(name):
             f.unlink()
 
 

@@ -7,6 +7,7 @@ With no case file it runs the built-in default: the seed paper's table 2 set-up 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from porefsi.cli._common import emit
@@ -27,11 +28,13 @@ def run(args: argparse.Namespace) -> int:
     case = load_case(args.case) if args.case else Case()
     if args.smoke:
         case = smoke_case(case)
+    if args.resume and args.overwrite:
+        raise InputError("--resume continues the run in DIR and --overwrite replaces it: pass one of them")
     out = Path(args.output) if args.output else Path(case.output.dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"output {out} exists and is not a folder; pass another -o DIR")
-    result = run_case(case, out, resume=args.resume, progress=None if not args.json else False,
+    result = run_case(case, out, resume=args.resume, overwrite=args.overwrite, force=args.force,
                       figures=False if args.no_figures else None)
+    if result.note:
+        print(f"porefsi: {result.note}", file=sys.stderr)
     summary = {k: result.summary.get(k) for k in _HEADLINE}
     summary["output_dir"] = str(out)
     emit(summary if not args.json else result.summary | {"output_dir": str(out)}, args.json)
@@ -47,7 +50,13 @@ def register(subparsers) -> None:
         "shipped Berea crop).")
     p.add_argument("case", nargs="?", default=None, metavar="CASE.toml", help="case file (default: built-in case)")
     p.add_argument("-o", "--output", default=None, metavar="DIR", help="run directory (default: output.dir)")
-    p.add_argument("--resume", action="store_true", help="continue a killed run from DIR/checkpoint.npz")
+    p.add_argument("--resume", action="store_true",
+                   help="continue a killed or interrupted run from DIR/checkpoint.npz (a completed run: nothing to do)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the results of an earlier run in DIR (refused without it), once the new run's "
+                   "inputs have been read and checked")
+    p.add_argument("--force", action="store_true",
+                   help="run past the size limits (10000 exchange steps, 50 GiB of outputs, the disk's free space)")
     p.add_argument("--smoke", action="store_true", help="a seconds-long version of the case (CI, quick checks)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--json", action="store_true", help="print the whole summary as one JSON object")

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import pickle
 import time
 from collections.abc import Iterator
 
@@ -38,17 +37,22 @@ from porefsi.coupling.problem import CoupledProblem, build_interface
 from porefsi.coupling.relaxation import aitken_omega
 from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change, update_nodes
 from porefsi.errors import ConvergenceError, NetworkError
+from porefsi.flow._drainage_checkpoint import simulator_from_state, simulator_state
 from porefsi.flow.drainage import OUTLET_PRESSURE, DrainageSimulator
 from porefsi.flow.permeability import absolute_permeability
 from porefsi.flow.state import FlowState
 from porefsi.image.ops import percolating_cluster
 from porefsi.integrators.tdg import TDGStepper
+from porefsi.io import plain
 from porefsi.network.extract import extract_network
 from porefsi.network.network import Network
 from porefsi.solid.static import solve_static
 from porefsi.solid.stress import element_cauchy, nodal_average, von_mises
 
 __all__ = ["ExchangeRecord", "CoupledRun", "TIMESERIES_COLUMNS", "TIMESERIES_DOCS", "OUTLET_PRESSURE"]
+
+#: Layout version of :meth:`CoupledRun.checkpoint` (1: pickled objects, no longer read; 2: plain arrays).
+CHECKPOINT_FORMAT = 2
 
 #: Columns of the per-exchange-step time series (``timeseries.csv``).
 TIMESERIES_COLUMNS = (
@@ -461,15 +465,17 @@ class CoupledRun:
     # ---- checkpoints --------------------------------------------------------------------
     def checkpoint(self) -> tuple[dict, dict]:
         """(arrays, metadata) that :meth:`restore` turns back into this run, exactly."""
-        arrays = {
-            "u": self.u, "v": self.v, "labels": self.labels,
-            "simulator": np.frombuffer(pickle.dumps(self.sim, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
-            "network": np.frombuffer(pickle.dumps(self.network, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
-            "interface": np.frombuffer(pickle.dumps(self.interface, protocol=pickle.HIGHEST_PROTOCOL), np.uint8),
-        }
-        meta = {"step_index": self.step_index, "t": self.t, "seconds": self.seconds, "cpu_seconds": self.cpu_seconds,
-                "n_extractions": self.n_extractions, "n_extractions_reused": self.n_extractions_reused,
-                "update_seconds": self.update_seconds, "update_cpu_seconds": self.update_cpu_seconds}
+        arrays = {"u": self.u, "v": self.v, "labels": self.labels}
+        meta = {"format": CHECKPOINT_FORMAT, "step_index": self.step_index, "t": self.t, "seconds": self.seconds,
+                "cpu_seconds": self.cpu_seconds, "n_extractions": self.n_extractions,
+                "n_extractions_reused": self.n_extractions_reused, "update_seconds": self.update_seconds,
+                "update_cpu_seconds": self.update_cpu_seconds}
+        # plain arrays only (no pickles: a checkpoint from someone else must not run code)
+        simulator_state(self.sim, "sim", arrays, meta)
+        meta["network_is_sim_network"] = self.network is self.sim.net
+        if not meta["network_is_sim_network"]:
+            plain.put_dataclass("network", self.network, arrays, meta)
+        plain.put_dataclass("interface", self.interface, arrays, meta)
         # where the reused factorisations were built (restore rebuilds the same matrices)
         if self._static_lu_at is not None:
             arrays["static_lu_u"] = self._static_lu_at[0]
@@ -488,14 +494,28 @@ class CoupledRun:
     @classmethod
     def restore(cls, problem: CoupledProblem, arrays: dict, meta: dict, *, reuse_extractions: bool = True
                 ) -> CoupledRun:
-        """Rebuild a run from :meth:`checkpoint` output (on the same problem)."""
+        """Rebuild a run from :meth:`checkpoint` output (on the same problem).
+
+        Raises
+        ------
+        ValueError
+            A checkpoint of another format version (e.g. the pickles of earlier porefsi versions).
+        KeyError, ValueError, TypeError
+            Missing or inconsistent entries (:func:`porefsi.case.run.run_case` reports them as a
+            damaged checkpoint).
+        """
+        if meta.get("format") != CHECKPOINT_FORMAT:
+            raise ValueError(f"checkpoint format {meta.get('format')!r}, this porefsi reads {CHECKPOINT_FORMAT}")
         run = cls(problem, reuse_extractions=reuse_extractions)
         run.u = np.array(arrays["u"], dtype=float)
         run.v = np.array(arrays["v"], dtype=float)
+        if run.u.shape != (run.model.n_dofs,) or run.v.shape != run.u.shape:
+            raise ValueError(f"displacements of {run.u.size} dofs, the solid model has {run.model.n_dofs}")
         run.labels = np.array(arrays["labels"])
-        run.sim = pickle.loads(arrays["simulator"].tobytes())  # noqa: S301 - our own checkpoint file
-        run.network = pickle.loads(arrays["network"].tobytes())  # noqa: S301
-        run.interface = pickle.loads(arrays["interface"].tobytes())  # noqa: S301
+        run.sim = simulator_from_state("sim", arrays, meta)
+        run.network = run.sim.net if meta["network_is_sim_network"] else \
+            Network(**plain.get_fields("network", arrays, meta))
+        run.interface = Interface(**plain.get_fields("interface", arrays, meta))
         run.step_index = int(meta["step_index"])
         run.t = float(meta["t"])
         run.seconds = dict(meta["seconds"])

@@ -13,10 +13,14 @@ import json
 import math
 import os
 import tempfile
+import zipfile
+import zlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+
+from porefsi.errors import InputError
 
 __all__ = ["jsonable", "file_mode", "atomic_write_bytes", "atomic_path", "atomic_write_text", "write_json", "write_csv",
            "write_npz", "PvdSeries",
@@ -74,7 +78,8 @@ def atomic_path(path: str | Path):
     """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+    # the file's own suffix last, for writers that infer the format from it (matplotlib)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=f".tmp{p.suffix}")
     os.close(fd)
     try:
         yield Path(tmp)
@@ -224,9 +229,50 @@ def save_checkpoint(path: str | Path, arrays: Mapping[str, np.ndarray], meta: Ma
     return atomic_write_bytes(path, buf.getvalue())
 
 
-def load_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
-    """Read a checkpoint written by :func:`save_checkpoint`: (arrays, metadata)."""
-    with np.load(path, allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files if k != "__meta__"}
-        meta = json.loads(bytes(z["__meta__"]).decode("utf-8"))
+def load_checkpoint(path: str | Path, what: str = "checkpoint",
+                    fix: str = "run again without --resume to start over") -> tuple[dict[str, np.ndarray], dict]:
+    """Read a checkpoint written by :func:`save_checkpoint`: (arrays, metadata).
+
+    Loaded with ``allow_pickle=False``: a file someone else made cannot run code here.
+
+    Raises
+    ------
+    InputError
+        The file is missing, empty, truncated, corrupt or not a checkpoint; the message names
+        the file, what is wrong with it and ``fix``.
+    """
+    p = Path(path)
+
+    def bad(cause: str) -> InputError:
+        return InputError(f"{p} is not a usable {what}: {cause}; {fix}")
+
+    try:
+        size = p.stat().st_size
+    except OSError as exc:
+        raise bad(f"cannot read it ({exc.strerror or exc})") from None
+    if size == 0:
+        raise bad("the file is empty (a disk that filled up, or a copy that did not finish?)")
+    with open(p, "rb") as fh:
+        head = fh.read(4)
+    if head[:1] == b"\x80":
+        raise bad("it is a Python pickle (an older porefsi's format, no longer loaded because "
+                  "a pickle can run code)")
+    if head != b"PK\x03\x04":
+        raise bad("it is not a numpy .npz archive (wrong first bytes: truncated, overwritten or another file)")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files if k != "__meta__"}
+            meta = json.loads(bytes(z["__meta__"]).decode("utf-8"))
+    except KeyError:
+        raise bad("it has no metadata record (not written by porefsi)") from None
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, UnicodeDecodeError) as exc:
+        raise bad(f"it is truncated or corrupt ({type(exc).__name__}: {_no_pickle_advice(exc)})") from None
+    if not isinstance(meta, dict):
+        raise bad("its metadata record is not a table")
     return arrays, meta
+
+
+def _no_pickle_advice(exc: BaseException) -> str:
+    """The text of numpy's error without its advice to pass allow_pickle (never right for a user's file)."""
+    text = str(exc)
+    return "not plain numeric arrays" if "allow_pickle" in text else text
