@@ -111,8 +111,8 @@ def test_points_in_image_frame_and_volume():
     r = mesh_solid(img)
     m = r.mesh
     h = img.voxel_size
-    assert np.allclose(m.points.min(axis=0), img.origin)
-    assert np.allclose(m.points.max(axis=0), img.origin + np.array(solid.shape) * h)
+    assert np.allclose(m.points.min(axis=0), img.origin, rtol=1e-12, atol=1e-9 * h)
+    assert np.allclose(m.points.max(axis=0), img.origin + np.array(solid.shape) * h, rtol=1e-12, atol=1e-9 * h)
     assert m.volume == pytest.approx(solid.sum() * h**3, rel=1e-12, abs=0)
     assert r.removed_solid_fraction == 0.0
     np.testing.assert_array_equal(m.box, [img.origin, img.origin + np.array(solid.shape) * h])
@@ -155,7 +155,8 @@ def test_coarsening_counts_blocks():
     # blocks (3, 2, 2): k=0 blocks solid (fraction 1), k=1 blocks: solid only where i-block is the last
     assert r.mesh.n_tets == 5 * (3 * 2 + 2)
     h = 2e-6
-    assert np.allclose(r.mesh.points.max(axis=0) - r.mesh.points.min(axis=0), np.array([5, 4, 4]) * h)
+    assert np.allclose(r.mesh.points.max(axis=0) - r.mesh.points.min(axis=0), np.array([5, 4, 4]) * h, rtol=1e-12,
+                       atol=1e-9 * h)
 
 
 def test_sample_reaches_paper_size():
