@@ -111,15 +111,15 @@ def test_points_in_image_frame_and_volume():
     r = mesh_solid(img)
     m = r.mesh
     h = img.voxel_size
-    assert np.allclose(m.points.min(axis=0), img.origin)
-    assert np.allclose(m.points.max(axis=0), img.origin + np.array(solid.shape) * h)
-    assert m.volume == pytest.approx(solid.sum() * h**3, rel=1e-12)
+    assert np.allclose(m.points.min(axis=0), img.origin, rtol=1e-12, atol=1e-9 * h)
+    assert np.allclose(m.points.max(axis=0), img.origin + np.array(solid.shape) * h, rtol=1e-12, atol=1e-9 * h)
+    assert m.volume == pytest.approx(solid.sum() * h**3, rel=1e-12, abs=0)
     assert r.removed_solid_fraction == 0.0
     np.testing.assert_array_equal(m.box, [img.origin, img.origin + np.array(solid.shape) * h])
     # pore-wall area = faces of the 2x3x2 pore box = 2(6+4+6) voxel faces
     fa = m.points[m.facets_tagged("pore_wall")]
     area = 0.5 * np.linalg.norm(np.cross(fa[:, 1] - fa[:, 0], fa[:, 2] - fa[:, 0]), axis=1).sum()
-    assert area == pytest.approx(2 * (6 + 4 + 6) * h**2, rel=1e-12)
+    assert area == pytest.approx(2 * (6 + 4 + 6) * h**2, rel=1e-12, abs=0)
 
 
 def test_floating_grain_removed_and_reported():
@@ -132,7 +132,7 @@ def test_floating_grain_removed_and_reported():
     grain, total = 8, solid.sum()
     assert r.n_components_removed == 1
     assert r.removed_solid_fraction == pytest.approx(grain / total, rel=1e-14)
-    assert r.mesh.volume == pytest.approx((total - grain) * img.voxel_size**3, rel=1e-12)
+    assert r.mesh.volume == pytest.approx((total - grain) * img.voxel_size**3, rel=1e-12, abs=0)
     # "largest" keeps the same here (the grain is the small one)
     assert mesh_solid(img, keep="largest").mesh.n_tets == r.mesh.n_tets
 
@@ -155,7 +155,8 @@ def test_coarsening_counts_blocks():
     # blocks (3, 2, 2): k=0 blocks solid (fraction 1), k=1 blocks: solid only where i-block is the last
     assert r.mesh.n_tets == 5 * (3 * 2 + 2)
     h = 2e-6
-    assert np.allclose(r.mesh.points.max(axis=0) - r.mesh.points.min(axis=0), np.array([5, 4, 4]) * h)
+    assert np.allclose(r.mesh.points.max(axis=0) - r.mesh.points.min(axis=0), np.array([5, 4, 4]) * h, rtol=1e-12,
+                       atol=1e-9 * h)
 
 
 def test_sample_reaches_paper_size():
