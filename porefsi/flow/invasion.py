@@ -71,7 +71,9 @@ def invasion_percolation(net: Network, fluids: Fluids = PAPER_FLUIDS, axis="x", 
     ----------
     net : Network
     fluids : Fluids
-        Sets the thresholds ``2 sigma cos(theta) / r``; the order depends on radii only.
+        Sets the thresholds: :meth:`Fluids.entry_pressure` of each throat and pore body under the
+        network's conduit model (``2 sigma cos(theta) / r`` for ``"paper"``, Mayer-Stowe-Princen
+        for ``"shape_factor"``).
     axis : {'x', 'y', 'z'}
     trapping : bool
         Never invade wetting clusters cut off from the outlet (default True).
