@@ -236,3 +236,45 @@ def _wait_for(cond, proc: subprocess.Popen, what: str = "the run's first checkpo
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out waiting for {what}")
         time.sleep(0.05)
+
+
+@pytest.fixture
+def small_fs(tmp_path):
+    """A real filesystem of a given size (tmpfs; root and mount permission needed, else skipped)."""
+    mnt = tmp_path / "fs"
+    mnt.mkdir()
+
+    def mount(size: int, remount: bool = False):
+        opts = f"{'remount,' if remount else ''}size={size}"
+        r = subprocess.run(["mount", "-t", "tmpfs", "-o", opts, "tmpfs", str(mnt)], capture_output=True, text=True)
+        if r.returncode != 0:
+            pytest.skip(f"cannot mount a small tmpfs here: {r.stderr.strip()}")
+        return mnt
+
+    yield mount
+    subprocess.run(["umount", str(mnt)], capture_output=True)
+
+
+def test_a_really_full_disk_keeps_the_last_checkpoint_and_resumes(finished, small_fs):
+    """A tmpfs with room for one checkpoint but not for the atomic write of the next (old and new
+    copies at once): exit 2 with one line saying the disk is full, the step-1 checkpoint intact,
+    and --resume completes once there is room."""
+    case, done, _ = finished
+    size = (done / "checkpoint.npz").stat().st_size
+    c = case.parent / "c3.toml"
+    c.write_text(CASE.format(t_end=3.0, dt=1.0))
+    fs = small_fs(int(1.6 * size) + 200_000)
+    out = fs / "run"
+    one_line_error(porefsi("run", c, "-o", out), "free", "disk")  # refused up front: estimated too large
+    assert not out.exists()
+    r = porefsi("run", c, "-o", out, "--force")
+    err = "".join(line for line in r.stderr.splitlines(keepends=True) if not line.startswith("porefsi run: step"))
+    one_line_error(subprocess.CompletedProcess(r.args, r.returncode, r.stdout, err), "no space left", "--resume")
+    from porefsi.io.results import load_checkpoint
+
+    assert load_checkpoint(out / "checkpoint.npz")[1]["step_index"] >= 1
+    assert not [p for p in out.rglob("*.tmp*")]  # no half-written temporaries left behind
+    small_fs(200 * 2**20, remount=True)
+    r = porefsi("run", c, "-o", out, "--resume", "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["n_exchange_steps"] == 3

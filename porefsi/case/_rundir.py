@@ -173,20 +173,25 @@ def check_steps(case: Case, force: bool) -> None:
             "--force (force=True) to run it anyway")
 
 
-def check_output_volume(out: Path, case: Case, n_pores: int, n_nodes: int, force: bool) -> int:
+def check_output_volume(out: Path, case: Case, problem, force: bool) -> int:
     """Estimate the bytes a run will write; refuse past :data:`MAX_OUTPUT_BYTES` or the free space.
 
     The estimate: per step the pore file (7 doubles per pore) and the pore-size table, plus the
-    VTK snapshots (about 60 bytes per mesh node and 70 per pore each) and the time series.
+    VTK snapshots (about 60 bytes per mesh node and 70 per pore each), the time series, and
+    twice the checkpoint (an atomic write holds the old and the new one at once; the checkpoint
+    is mostly the voxel labels, the displacements and the interface operator).
 
     Raises
     ------
     InputError
         The estimate exceeds the limit or the free space of the disk (unless ``force``).
     """
+    n_pores, n_nodes = problem.network.n_pores, problem.mesh.n_nodes
     steps = n_exchange_steps(case)
     n_snap = (len(case.output.snapshot_times) + 2) if case.output.vtk else 0
-    estimate = steps * (56 * n_pores + 4000) + n_snap * (60 * n_nodes + 70 * n_pores) + 400 * steps
+    checkpoint = (problem.extraction.labels.nbytes + 12 * problem.interface.operator.nnz + 48 * n_nodes
+                  + 400 * n_pores)
+    estimate = steps * (56 * n_pores + 4400) + n_snap * (60 * n_nodes + 70 * n_pores) + 2 * checkpoint
     probe = out
     while not probe.exists() and probe.parent != probe:
         probe = probe.parent

@@ -55,8 +55,8 @@ class ImageConfig:
     """Where the rock image comes from."""
 
     path: str = _f("", "image file; empty = the built-in 120³ Berea sample")
-    voxel_size: float | None = _f(None, "voxel edge length (needed when the file carries none)",
-                                  lo=0.0, lo_open=True, unit="m", optional=True)
+    voxel_size: float | None = _f(None, "voxel edge length (needed when the file carries none; 1e-10 to 1 m, "
+                                  "a warning outside 1 nm - 1 mm)", lo=1e-10, hi=1.0, unit="m", optional=True)
     threshold: float | None = _f(None, "grey images: pore = value <= threshold", optional=True)
     pore_value: float | None = _f(None, "labelled images: the value that marks pore", optional=True)
     invert: bool = _f(False, "binary images: 0 is pore (default 1/True = pore)")

@@ -42,11 +42,13 @@ from pathlib import Path
 import numpy as np
 
 from porefsi._version import __version__
+from porefsi.case import _plausible
 from porefsi.case import _rundir as _rd
 from porefsi.case.config import Case, case_to_dict, case_to_toml
 from porefsi.coupling.loop import TIMESERIES_COLUMNS, CoupledRun, ExchangeRecord
 from porefsi.coupling.problem import build_problem
 from porefsi.errors import InputError, PorefsiError
+from porefsi.image.io import check_voxel_size
 from porefsi.io import interrupt, results, rundir
 from porefsi.io.network_vtk import write_network_vtp
 
@@ -261,8 +263,11 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
         _rd.refuse_existing(out, overwrite)
         _rd.check_steps(case, force)
     problem = build_problem(case)
+    _plausible.warn_injection_pressure(problem.network, case.image.axis, case.drainage.rate, case.fluids.mu_n)
+    if not case.image.path and case.image.voxel_size is not None:  # a file's is checked when it is read
+        check_voxel_size(case.image.voxel_size, "image.voxel_size")
     state = _restore(problem, out, saved, reuse_extractions) if saved else None
-    _rd.check_output_volume(out, case, problem.network.n_pores, problem.mesh.n_nodes, force or resume)
+    _rd.check_output_volume(out, case, problem, force or resume)
     # 2. the directory is ours: clear what goes, then run
     with rundir.lock(out), rundir.output_errors(out):
         if saved is None:
@@ -364,6 +369,7 @@ def _execute(case: Case, out: Path, problem, state: dict | None, clock: _RunCloc
             _write_summary(out, case, run, rows, setup_seconds, status, error, [], clock)
         raise
     ts = _columns(rows)
+    _plausible.warn_pressure_reached(max((p for p in ts["inlet_pressure_Pa"] if math.isfinite(p)), default=math.nan))
     made = _figures(out, ts, snapshots, run, progress) if (opts["figures"] and status == "completed") else []
     summary = _write_summary(out, case, run, rows, setup_seconds, status, error, made, clock)
     return RunOutput(summary, out, ts)

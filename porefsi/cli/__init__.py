@@ -12,6 +12,7 @@ import importlib
 import os
 import signal
 import sys
+import warnings
 
 from porefsi._version import __version__
 from porefsi.errors import PorefsiError
@@ -35,6 +36,14 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         self.exit(EXIT_ERROR, f"porefsi: error: {self.prog}: {message} (see '{self.prog} --help')\n")
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings during a command: one ``porefsi: warning: ...`` line on stderr (no source line)."""
+    from porefsi.image.io import PlausibilityWarning
+
+    kind = "" if issubclass(category, PlausibilityWarning) else f"{category.__name__}: "
+    print(f"porefsi: warning: {kind}{message}", file=sys.stderr if file is None else file)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -86,7 +95,9 @@ def main(argv: list[str] | None = None) -> int:
 
     interrupt.reset()
     try:
-        with threadpool_limits(limits=BLAS_THREADS, user_api="blas"), interrupt.terminate_like_interrupt():
+        with threadpool_limits(limits=BLAS_THREADS, user_api="blas"), interrupt.terminate_like_interrupt(), \
+                warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
             code = int(args.func(args) or 0)
         sys.stdout.flush()  # a reader that closed early shows up here, not at interpreter exit
         return code

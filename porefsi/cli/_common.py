@@ -164,6 +164,9 @@ def image_from_args(args: argparse.Namespace, path):
             )
         image = load_sample()
         if opt["voxel_size"] is not None:
+            from porefsi.image.io import check_voxel_size
+
+            check_voxel_size(opt["voxel_size"], "--voxel-size")
             image = VoxelImage(image.phases, opt["voxel_size"], image.origin)
         return image
     return read_image(

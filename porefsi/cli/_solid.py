@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -37,17 +36,34 @@ def register(subparsers) -> None:
     p.add_argument("--steps", type=int, default=1, help="load increments (default 1)")
     p.add_argument("--order", type=int, default=1, choices=(1, 2), help="element order (default 1)")
     p.add_argument("-o", "--output", default=None, metavar="DIR", help="write solid.vtu and summary.json here")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace solid.vtu and summary.json of an earlier run in DIR (refused without it)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=run)
 
 
+def _refuse_existing(out, overwrite: bool) -> None:
+    """Refuse to replace the results of an earlier run in ``out`` unless ``overwrite``."""
+    from porefsi.errors import InputError
+
+    if out is None or overwrite or not out.is_dir():
+        return
+    held = [n for n in ("solid.vtu", "summary.json", "checkpoint.npz") if (out / n).is_file()]
+    if held:
+        raise InputError(f"output folder {out} already holds results ({', '.join(held)}): pass --overwrite to replace "
+                         "them, or pass another -o DIR")
+
+
 def run(args) -> int:
     """Mesh, compress, write, summarise."""
+    from porefsi.io import rundir
     from porefsi.solid.materials import make_material
     from porefsi.solid.mesh import mesh_solid, tet_volumes
     from porefsi.solid.static import uniaxial_compression
 
     t0 = time.perf_counter()
+    out = rundir.check_output_dir(args.output) if args.output else None  # before any work
+    _refuse_existing(out, args.overwrite)
     image = image_from_args(args, args.image)
     material = make_material(args.material, E=args.youngs_modulus, nu=args.poisson)
     mres = mesh_solid(image, coarsen=args.coarsen, support_axis=args.axis)
@@ -68,21 +84,19 @@ def run(args) -> int:
         "mean_von_mises_Pa": float(np.average(res.von_mises_element, weights=tet_volumes(mesh.points, mesh.tets))),
         "newton_iterations": [i.iterations for i in res.newton],
     }
-    if args.output:
-        out = Path(args.output)
-        out.mkdir(parents=True, exist_ok=True)
-        vtu = mesh.write_vtu(
-            out / "solid.vtu",
-            point_data={"displacement": res.u, "von_mises_nodal": res.von_mises_nodal},
-            cell_data={"von_mises": res.von_mises_element, "cauchy_stress": res.sigma.reshape(-1, 9)},
-        )
-        summary["vtu"] = str(vtu)
+    if out is not None:  # one run at a time; solid.vtu and summary.json written atomically
+        from porefsi.io.results import write_json
+
+        summary["vtu"] = str(out / "solid.vtu")
+        with rundir.lock(out), rundir.output_errors(out):
+            _refuse_existing(out, args.overwrite)
+            mesh.write_vtu(
+                out / "solid.vtu",
+                point_data={"displacement": res.u, "von_mises_nodal": res.von_mises_nodal},
+                cell_data={"von_mises": res.von_mises_element, "cauchy_stress": res.sigma.reshape(-1, 9)},
+            )
+            summary["seconds"] = time.perf_counter() - t0
+            write_json(out / "summary.json", summary)
     summary["seconds"] = time.perf_counter() - t0
-    if args.output:
-        import json
-
-        from porefsi.cli._common import to_jsonable
-
-        (Path(args.output) / "summary.json").write_text(json.dumps(to_jsonable(summary), indent=2))
     emit(summary, args.json)
     return 0

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from porefsi.errors import InputError
+from porefsi.image._memory import require_memory
 from porefsi.image._tiff import _read_tiff
 from porefsi.image.voxel_image import VoxelImage
 
@@ -49,6 +50,7 @@ def _read_raw(path: Path, shape, dtype, order: str, offset: int = 0) -> np.ndarr
         raise InputError(f"raw shape must be 3 positive integers (nx, ny, nz), got {shape!r}")
     if order not in ("F", "C"):
         raise InputError(f"raw order must be 'F' (x fastest, MetaImage/ImageJ) or 'C', got {order!r}")
+    require_memory(shp, dt, path)
     data = np.fromfile(path, dtype=np.uint8, offset=offset)
     return _raw_array(data, shp, dt, path, order)
 
@@ -190,6 +192,9 @@ def _read_mhd(path: Path, mhd_unit, voxel_size=None, order: str = "F"):
             raise InputError(f"{path}: DimSize must have 3 values (nx ny nz), got {dims!r}")
         msb = fields.get("binarydatabyteordermsb", fields.get("elementbyteordermsb", "False"))
         dt = np.dtype((">" if msb.strip().lower() == "true" else "<") + _MET_TYPES[etype])
+        if min(shape) < 1:
+            raise InputError(f"{path}: DimSize must be 3 positive integers, got {dims!r}")
+        require_memory(shape, dt, path)
         nbytes = int(np.prod(shape)) * dt.itemsize
         try:
             hsize = int(fields.get("headersize", "0").split()[0])

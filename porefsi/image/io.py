@@ -21,12 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from porefsi.errors import InputError
+from porefsi.image._memory import npy_header, require_memory
 from porefsi.image._mhd import MHD_UNITS, _read_mhd, _read_raw, _write_mhd
 from porefsi.image._tiff import _read_tiff, _require_3d
 from porefsi.image.voxel_image import VoxelImage, positive_length
 
 # MetaImage parsing/writing lives in _mhd.py, TIFF reading in _tiff.py; MHD_UNITS is re-exported here.
-__all__ = ["segment", "read_image", "write_image", "load_sample", "SAMPLES", "READ_FORMATS", "MHD_UNITS"]
+__all__ = ["segment", "read_image", "check_voxel_size", "PlausibilityWarning", "VOXEL_SIZE_LIMITS",
+           "PLAUSIBLE_VOXEL_SIZE", "write_image", "load_sample", "SAMPLES", "READ_FORMATS", "MHD_UNITS"]
 
 #: Readable file suffixes and what each needs from the user.
 READ_FORMATS = {
@@ -187,8 +189,50 @@ def segment(
 
 
 # --------------------------------------------------------------------------------------------
+# plausibility
+# --------------------------------------------------------------------------------------------
+class PlausibilityWarning(UserWarning):
+    """An input that is allowed but probably a mistake (e.g. a unit typed wrongly); names the likely cause."""
+
+
+#: Voxel sizes outside this range (m) are refused: no rock image has them.
+VOXEL_SIZE_LIMITS = (1e-10, 1.0)
+#: Voxel sizes outside this range (m) are read with a :class:`PlausibilityWarning`.
+PLAUSIBLE_VOXEL_SIZE = (1e-9, 1e-3)
+
+
+def check_voxel_size(vs: float, source: str = "voxel size") -> float:
+    """Return ``vs`` (m); refuse it outside :data:`VOXEL_SIZE_LIMITS`, warn outside :data:`PLAUSIBLE_VOXEL_SIZE`.
+
+    Raises
+    ------
+    InputError
+        ``vs`` is not a length a rock image can have (e.g. 1e300, or micrometres typed as metres: 5.3).
+    """
+    lo, hi = VOXEL_SIZE_LIMITS
+    if not lo <= vs <= hi:
+        raise InputError(f"{source} = {vs:g} m is not the voxel size of a rock image (allowed {lo:g} to {hi:g} m); "
+                         "give it in metres, e.g. 5.345e-6 for 5.345 um")
+    plo, phi = PLAUSIBLE_VOXEL_SIZE
+    if not plo <= vs <= phi:
+        import warnings
+
+        hint = "micrometres typed as metres or millimetres?" if vs > phi else "metres typed as nanometres?"
+        warnings.warn(f"{source} = {vs:g} m is outside 1 nm - 1 mm, where micro-CT voxels are ({hint}); "
+                      "porefsi reads voxel sizes in metres", PlausibilityWarning, stacklevel=2)
+    return vs
+
+
+# --------------------------------------------------------------------------------------------
 # readers
 # --------------------------------------------------------------------------------------------
+def _npz_member(z, key: str, path) -> tuple[tuple, np.dtype]:
+    """(shape, dtype) of array ``key`` of an open ``.npz``, from its header alone."""
+    with z.zip.open(f"{key}.npy") as fh:
+        shape, dtype, _ = npy_header(fh, f"{path} [{key!r}]")
+    return shape, dtype
+
+
 def _read_npz(path: Path, key: str | None):
     with np.load(path, allow_pickle=False) as z:
         keys = list(z.files)
@@ -200,7 +244,7 @@ def _read_npz(path: Path, key: str | None):
             if found:
                 key = found[0]
             else:
-                three = [k for k in keys if z[k].ndim == 3]
+                three = [k for k in keys if len(_npz_member(z, k, path)[0]) == 3]
                 if len(three) != 1:
                     net = " (it looks like a pore-network file)" if "pore.coords" in keys else ""
                     raise InputError(
@@ -208,6 +252,8 @@ def _read_npz(path: Path, key: str | None):
                         f"{len(three)} of them 3-D; pass key=... (CLI --key)"
                     )
                 key = three[0]
+        shape, dtype = _npz_member(z, key, path)
+        require_memory(shape, dtype, f"{path} [{key!r}]")
         arr = z[key]
         vs = None
         for k in ("voxel_size_m", "voxel_size"):
@@ -221,11 +267,25 @@ def _read_npz(path: Path, key: str | None):
     return _require_3d(arr, f"{path} [{key!r}]"), vs, origin
 
 
+def _read_npy(p: Path) -> np.ndarray:
+    """An ``.npy`` image, its header checked first (3-D, numeric, complete, fits in memory)."""
+    with open(p, "rb") as fh:
+        shape, dtype, _ = npy_header(fh, p)
+        offset = fh.tell()
+    _require_3d(np.broadcast_to(np.zeros((), dtype), shape), str(p))  # a view: nothing allocated
+    require_memory(shape, dtype, p)
+    need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+    if p.stat().st_size - offset < need:
+        raise InputError(f"{p} is truncated: its header says {shape} x {dtype} ({need} bytes of data) but the file "
+                         f"holds {p.stat().st_size - offset}; copy the complete file again")
+    return _require_3d(np.load(p, allow_pickle=False), str(p))
+
+
 def _read_any(p: Path, suffix: str, shape, dtype, key, mhd_unit, raw_order, voxel_size):
     """Dispatch on the suffix; return (array, voxel size from the file or None, origin or None)."""
     file_vs = origin = None
     if suffix == ".npy":
-        arr = _require_3d(np.load(p, allow_pickle=False), str(p))
+        arr = _read_npy(p)
     elif suffix == ".npz":
         arr, file_vs, origin = _read_npz(p, key)
     elif suffix == ".mhd":
@@ -346,6 +406,7 @@ def read_image(
             f"voxel size unknown for {p}: the file does not store one; pass voxel_size=... in metres "
             "(CLI --voxel-size M, e.g. 5.345e-6)"
         )
+    check_voxel_size(vs, "voxel_size (--voxel-size)" if voxel_size is not None else f"the voxel size stored in {p}")
     phases = segment(arr, threshold=threshold, pore_value=pore_value, invert=invert, pore_above=pore_above)
     return VoxelImage(phases, vs, np.zeros(3) if origin is None else origin)
 

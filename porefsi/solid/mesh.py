@@ -314,6 +314,35 @@ def _keep_components(solid: np.ndarray, keep: str, support_axis: int | None) -> 
     return mask, int(n - len(keep_ids))
 
 
+#: A coarsening must leave at least this many blocks across every axis of the image (or every voxel).
+MIN_BLOCKS = 2
+#: ... and keep at least this fraction of the image's pore volume fraction as pore blocks.
+MIN_PORE_KEPT = 0.5
+
+
+def _require_resolved(image: VoxelImage, fine: np.ndarray, solid: np.ndarray, cell_vol: np.ndarray, c: int) -> None:
+    """Refuse a coarsening that leaves the solid unresolved: too few blocks across, or pores lost.
+
+    A block of 1000 voxels on a 120-voxel image is one cell: 5 tetrahedra, no pores, a modulus
+    above the grain's. Raises :class:`InputError` naming the coarsening that would do.
+    """
+    if c == 1:
+        return
+    shape = image.phases.shape
+    few = [d for d in range(3) if solid.shape[d] < min(MIN_BLOCKS, shape[d])]
+    phi = 1.0 - float(fine.mean())
+    phi_c = 1.0 - float((cell_vol * solid).sum()) / float(cell_vol.sum())
+    fix = "use a smaller coarsening (--coarsen N, or [solid] coarsen = N in a case file)"
+    if few:
+        raise InputError(f"coarsen = {c} leaves {solid.shape[few[0]]} block(s) across axis {'xyz'[few[0]]} of the "
+                         f"{'x'.join(map(str, shape))}-voxel image (need >= {MIN_BLOCKS}): the solid would not be "
+                         f"resolved; {fix}, at most {max(1, min(shape) // MIN_BLOCKS)}")
+    if phi > 0 and phi_c < MIN_PORE_KEPT * phi:
+        raise InputError(f"coarsen = {c} turns most pores into solid blocks: porosity {phi:.3g} of the image, "
+                         f"{phi_c:.3g} of the coarsened one (need >= {MIN_PORE_KEPT:g} x): the mesh would miss "
+                         f"the pores and be too stiff; {fix}, e.g. {max(1, c // 2)}")
+
+
 def mesh_solid(
     image: VoxelImage,
     *,
@@ -348,7 +377,9 @@ def mesh_solid(
     Raises
     ------
     InputError
-        Bad ``coarsen``, ``threshold`` or ``keep``.
+        Bad ``coarsen``, ``threshold`` or ``keep``; a coarsening that leaves fewer than
+        :data:`MIN_BLOCKS` blocks across an axis, or keeps less than :data:`MIN_PORE_KEPT` of the
+        image's porosity (pores lost).
     MeshError
         No solid, or no solid connected to the supports.
     """
@@ -378,6 +409,7 @@ def mesh_solid(
             f"porous for this coarsening: use a smaller coarsen (--coarsen 1 meshes every voxel) or a lower "
             "threshold"
         )
+    _require_resolved(image, fine, solid, cell_vol, int(coarsen))
     mask, n_removed = _keep_components(solid, keep, ax)
     kept = float((cell_vol * mask).sum())
     ijk, tets, facets, tags = mesh_voxels(mask)
