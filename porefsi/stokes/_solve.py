@@ -85,8 +85,8 @@ def pressure_preconditioner(system: StaggeredSystem):
     """Smoothed-aggregation AMG hierarchy of :func:`schur_approximation` (symmetric V-cycle)."""
     S = schur_approximation(system)
     S.data[S.indptr[:-1]] *= 1.0 + 1e-12  # diagonal first: periodic/closed clusters stay definite
-    ml = pyamg.smoothed_aggregation_solver(
-        S, symmetry="symmetric", max_coarse=500,
+    ml = pyamg.smoothed_aggregation_solver(  # strength=None: S itself (no copy); theta=0 would keep all of S anyway
+        S, symmetry="symmetric", max_coarse=500, strength=None,
         presmoother=("gauss_seidel", {"sweep": "symmetric"}),
         postsmoother=("gauss_seidel", {"sweep": "symmetric"}),
     )
