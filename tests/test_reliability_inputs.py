@@ -184,3 +184,15 @@ def test_a_full_disk_mid_run_keeps_the_last_checkpoint(tmp_path, capsys, monkeyp
     code, _, err = _cli(capsys, "run", c, "-o", out, "--resume", "--json")
     assert code == 0, err
     assert json.loads((out / "summary.json").read_text())["n_exchange_steps"] == 3
+
+
+def test_random_bytes_npz_and_a_folder_as_case_file(tmp_path, capsys):
+    """numpy's advice to pass allow_pickle never reaches a user; a folder is not 'not found'."""
+    import os
+
+    (tmp_path / "junk.npz").write_bytes(os.urandom(3000))
+    code, _, err = _cli(capsys, "extract", tmp_path / "junk.npz", "--voxel-size", "1e-6")
+    _one_line(code, err, "not numpy data")
+    assert "allow_pickle" not in err
+    (tmp_path / "c.toml").mkdir()
+    _one_line(*_cli(capsys, "run", tmp_path / "c.toml")[::2], "is a folder")

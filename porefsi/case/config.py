@@ -343,6 +343,8 @@ def load_case(path: str | Path) -> Case:
         Missing file, TOML syntax error, unknown key or bad value (named).
     """
     p = Path(path)
+    if p.is_dir():
+        raise ConfigError(f"case file {str(p)!r} is a folder; give the path of a .toml case file")
     if not p.is_file():
         raise ConfigError(f"case file {str(p)!r} not found; give the path of a .toml case file")
     try:

@@ -395,7 +395,10 @@ def read_image(
     except InputError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
-        raise InputError(f"cannot read {p} as {suffix} ({type(exc).__name__}: {exc}); is the file complete "
+        # numpy's advice to pass allow_pickle is never right for a user's file: porefsi loads no pickles
+        cause = "not numpy data (random bytes, a pickle or another format)" if "allow_pickle" in str(exc) \
+            else f"{type(exc).__name__}: {exc}"
+        raise InputError(f"cannot read {p} as {suffix} ({cause}); is the file complete "
                          "and of the format its suffix says?") from None
     if voxel_size is not None:
         vs = voxel_size
