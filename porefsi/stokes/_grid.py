@@ -145,7 +145,8 @@ def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int
     open_axis : int or None
         Axis whose box faces open onto reservoirs at ``p_in`` (plane 0) and ``p_out`` (last plane).
     body_axis : int or None
-        Axis of the body force density ``body_force`` (per unit volume).
+        Axis of the body force density ``body_force`` (per unit volume); only without ``open_axis``
+        (every control volume is then a whole voxel).
     body_force, p_in, p_out : float
         Driving terms, voxel units.
 
@@ -153,6 +154,8 @@ def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int
     -------
     StaggeredSystem
     """
+    if body_force and open_axis is not None:
+        raise ValueError("a body force drives periodic flow only; with an open axis use p_in and p_out")
     pore = np.ascontiguousarray(pore, dtype=bool)
     shape = pore.shape
     periodic = tuple(bool(x) for x in periodic)
@@ -181,7 +184,7 @@ def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int
         sl = slice(offsets[d], offsets[d + 1])
         plane = np.unravel_index(cell[sl], fid.shape)[d]
         if d == body_axis and body_force:
-            rhs[sl] += body_force * np.where(half[sl] == 1, 0.5, 1.0)
+            rhs[sl] += body_force
         if d == open_axis:
             rhs[sl] += np.where(plane == 0, p_in, 0.0) - np.where(plane == n_planes[d] - 1, p_out, 0.0)
         del fid
