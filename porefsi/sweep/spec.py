@@ -241,14 +241,14 @@ def _members(base: Case, smoke: bool, keys: list, rows: list, labels: list | Non
     return out
 
 
-def _token(v: Any) -> str:
-    """A short, filesystem-safe text of one varied value."""
+def _token(v: Any, path: bool = False) -> str:
+    """A short, filesystem-safe text of one varied value (of a file: its name without suffix)."""
     if isinstance(v, bool):
         s = "true" if v else "false"
     elif isinstance(v, float):
         s = f"{v:.6g}"
-    elif isinstance(v, str) and ("/" in v or "\\" in v):
-        s = Path(v).stem  # image files: their name
+    elif path and isinstance(v, str):
+        s = Path(v).stem if v else "builtin"  # an empty image.path: the built-in sample
     else:
         s = str(v)
     return re.sub(r"[^A-Za-z0-9.+-]+", "_", s).strip("_.") or "_"
@@ -265,7 +265,7 @@ def member_name(index: int, values: dict, width: int = 1, label: str | None = No
     if label is not None:
         body = _token(label)
     else:
-        body = ",".join(f"{k.split('.')[-1]}={_token(v)}" for k, v in values.items())
+        body = ",".join(f"{k.split('.')[-1]}={_token(v, k.endswith('path'))}" for k, v in values.items())
     name = f"{head}-{body}" if body else head
     if len(name) > MAX_NAME:
         digest = hashlib.sha1(repr(sorted(values.items())).encode()).hexdigest()[:8]
