@@ -20,7 +20,7 @@ from porefsi.errors import PorefsiError
 __all__ = ["main", "build_parser"]
 
 #: Subcommand modules, in the order ``porefsi --help`` lists them.
-_MODULES = ("run", "extract", "drainage", "solid")
+_MODULES = ("run", "extract", "drainage", "solid", "sweep")
 
 EXIT_OK = 0
 EXIT_ERROR = 2
