@@ -255,6 +255,7 @@ def small_fs(tmp_path):
     subprocess.run(["umount", str(mnt)], capture_output=True)
 
 
+@pytest.mark.slow  # ~14 s; the default suite has the simulated ENOSPC (test_reliability_inputs)
 def test_a_really_full_disk_keeps_the_last_checkpoint_and_resumes(finished, small_fs):
     """A tmpfs with room for one checkpoint but not for the atomic write of the next (old and new
     copies at once): exit 2 with one line saying the disk is full, the step-1 checkpoint intact,
