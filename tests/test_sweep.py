@@ -191,10 +191,13 @@ def test_rerun_skips_completed_and_resumes_interrupted(tmp_path, serial_ref):
     run_case(m1.case, out / m1.name, overwrite=True, stop_after=1, progress=False)
     assert json.loads((out / m1.name / "summary.json").read_text())["status"] == "interrupted"
     kept = (out / m0.name / "summary.json").stat().st_mtime_ns
+    early = {f: f.stat().st_mtime_ns for f in (out / m1.name / "pores").glob("step_000[01].npz")}
+    assert len(early) == 2
     res = run_sweep(sweep, out, serial=True, progress=False)
     assert res.n_skipped == 1 and res.n_completed == 2
     assert (out / m0.name / "summary.json").stat().st_mtime_ns == kept  # not run again
     assert res.records[1]["resumed_from_step"] == 1
+    assert {f: f.stat().st_mtime_ns for f in early} == early  # resumed: steps 0-1 not redone
     assert results_of(out) == results_of(serial_ref)
     # another design into the same folder: refused, nothing changed
     other = load_sweep(write_sweep(tmp_path, '"drainage.rate" = [1.25e-13, 5e-11]\n'))
