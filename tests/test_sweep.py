@@ -217,3 +217,18 @@ def test_local_cluster_equals_serial(tmp_path, serial_ref):
     rows = table_of(out)
     assert [r["status"] for r in rows] == ["completed", "completed"]
     assert (out / "figures" / "sweep.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_docs_sweep_examples_are_valid(tmp_path):
+    """The sweep files of docs/sweeps.md load (the case file they name is the flow_rates case's)."""
+    import re
+    import tomllib
+
+    from porefsi.sweep import sweep_from_dict
+
+    text = (Path(__file__).parent.parent / "docs" / "sweeps.md").read_text()
+    blocks = re.findall(r"^```\{code-block\} toml\n(.*?)^```", text, re.M | re.S)
+    assert blocks
+    for b in blocks:
+        s = sweep_from_dict(tomllib.loads(b), base_dir=Path(__file__).parent.parent / "docs")
+        assert len(s.members) == 8 and s.plot.logx
