@@ -232,3 +232,30 @@ def test_docs_sweep_examples_are_valid(tmp_path):
     for b in blocks:
         s = sweep_from_dict(tomllib.loads(b), base_dir=Path(__file__).parent.parent / "docs")
         assert len(s.members) == 8 and s.plot.logx
+
+
+@pytest.mark.parametrize("name, n", [("flow_rates", 9), ("strain_rate", 4), ("speed_accuracy", 22)])
+def test_case_sweeps_load(name, n):
+    """The cases' sweep files are valid and hold the studies' members (speed_accuracy: all but `skip`)."""
+    s = load_sweep(Path(__file__).parent.parent / "cases" / name / "sweep.toml")
+    assert len(s.members) == n and len({m.name for m in s.members}) == n
+
+
+def test_speed_accuracy_sweep_is_the_study():
+    """Each member of cases/speed_accuracy/sweep.toml is its variant of run.py (same whole case)."""
+    import importlib.util
+
+    from porefsi.case.config import case_to_dict, load_case
+
+    folder = Path(__file__).parent.parent / "cases" / "speed_accuracy"
+    spec = importlib.util.spec_from_file_location("porefsi_case_sa_sweep", folder / "run.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    base = load_case(folder / "case.toml").replace(output={"vtk": False, "figures": False})
+    variants = {v["name"]: v for v in mod.variants(False) if v["skip_solves"] is None}
+    members = load_sweep(folder / "sweep.toml").members
+    assert [m.label for m in members] == list(variants)
+    for m in members:
+        want = case_to_dict(base.replace(**variants[m.label]["overrides"]))
+        got = case_to_dict(m.case)
+        assert {k: v for k, v in got.items() if k != "name"} == {k: v for k, v in want.items() if k != "name"}, m.name
