@@ -191,10 +191,13 @@ def test_rerun_skips_completed_and_resumes_interrupted(tmp_path, serial_ref):
     run_case(m1.case, out / m1.name, overwrite=True, stop_after=1, progress=False)
     assert json.loads((out / m1.name / "summary.json").read_text())["status"] == "interrupted"
     kept = (out / m0.name / "summary.json").stat().st_mtime_ns
+    early = {f: f.stat().st_mtime_ns for f in (out / m1.name / "pores").glob("step_000[01].npz")}
+    assert len(early) == 2
     res = run_sweep(sweep, out, serial=True, progress=False)
     assert res.n_skipped == 1 and res.n_completed == 2
     assert (out / m0.name / "summary.json").stat().st_mtime_ns == kept  # not run again
     assert res.records[1]["resumed_from_step"] == 1
+    assert {f: f.stat().st_mtime_ns for f in early} == early  # resumed: steps 0-1 not redone
     assert results_of(out) == results_of(serial_ref)
     # another design into the same folder: refused, nothing changed
     other = load_sweep(write_sweep(tmp_path, '"drainage.rate" = [1.25e-13, 5e-11]\n'))
@@ -214,3 +217,45 @@ def test_local_cluster_equals_serial(tmp_path, serial_ref):
     rows = table_of(out)
     assert [r["status"] for r in rows] == ["completed", "completed"]
     assert (out / "figures" / "sweep.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_docs_sweep_examples_are_valid(tmp_path):
+    """The sweep files of docs/sweeps.md load (the case file they name is the flow_rates case's)."""
+    import re
+    import tomllib
+
+    from porefsi.sweep import sweep_from_dict
+
+    text = (Path(__file__).parent.parent / "docs" / "sweeps.md").read_text()
+    blocks = re.findall(r"^```\{code-block\} toml\n(.*?)^```", text, re.M | re.S)
+    assert blocks
+    for b in blocks:
+        s = sweep_from_dict(tomllib.loads(b), base_dir=Path(__file__).parent.parent / "docs")
+        assert len(s.members) == 8 and s.plot.logx
+
+
+@pytest.mark.parametrize("name, n", [("flow_rates", 9), ("strain_rate", 4), ("speed_accuracy", 22)])
+def test_case_sweeps_load(name, n):
+    """The cases' sweep files are valid and hold the studies' members (speed_accuracy: all but `skip`)."""
+    s = load_sweep(Path(__file__).parent.parent / "cases" / name / "sweep.toml")
+    assert len(s.members) == n and len({m.name for m in s.members}) == n
+
+
+def test_speed_accuracy_sweep_is_the_study():
+    """Each member of cases/speed_accuracy/sweep.toml is its variant of run.py (same whole case)."""
+    import importlib.util
+
+    from porefsi.case.config import case_to_dict, load_case
+
+    folder = Path(__file__).parent.parent / "cases" / "speed_accuracy"
+    spec = importlib.util.spec_from_file_location("porefsi_case_sa_sweep", folder / "run.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    base = load_case(folder / "case.toml").replace(output={"vtk": False, "figures": False})
+    variants = {v["name"]: v for v in mod.variants(False) if v["skip_solves"] is None}
+    members = load_sweep(folder / "sweep.toml").members
+    assert [m.label for m in members] == list(variants)
+    for m in members:
+        want = case_to_dict(base.replace(**variants[m.label]["overrides"]))
+        got = case_to_dict(m.case)
+        assert {k: v for k, v in got.items() if k != "name"} == {k: v for k, v in want.items() if k != "name"}, m.name

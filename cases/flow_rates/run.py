@@ -16,26 +16,31 @@ the run (every DPN event, so transients shorter than an exchange step are seen),
 - dP_visc(Q) = Q mu_n L / (k A), the viscous pressure drop of oil through the network
   (k the network's absolute permeability): the crossover rate Q* solves dP_visc(Q*) = Pc_bt.
 
-Outputs: ``figures/flow_rates.png``, ``results.json``.
-Usage: ``python cases/flow_rates/run.py [--smoke] [--out DIR]``.
+The coupled runs are the members of a sweep (``sweep.toml``: ``porefsi sweep sweep.toml -o DIR``
+runs the same members; ``python run.py --write-sweep`` regenerates it from the pore volume), run
+on a local Dask cluster (``--serial`` in this process; the default for ``--smoke``;
+``--scheduler ADDRESS`` an existing cluster) into ``runs/<member>/``, with ``runs/sweep.csv``.
+
+Outputs: ``figures/flow_rates.png``, ``results.json``, ``runs/sweep.csv``.
+Usage: ``python cases/flow_rates/run.py [--smoke] [--out DIR] [--serial | --scheduler ADDRESS] [--resume]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 from porefsi.case.config import load_case, smoke_case
-from porefsi.coupling.loop import CoupledRun
 from porefsi.coupling.problem import build_problem
 from porefsi.flow.drainage import DrainageSimulator
 from porefsi.flow.invasion import invasion_percolation
 from porefsi.flow.permeability import absolute_permeability
+from porefsi.sweep import run_sweep, sweep_from_dict
 
 HERE = Path(__file__).resolve().parent
 PAPER_CASES = {"A": 1.25e-13, "B": 2.5e-13, "C": 5e-11, "D": 5e-10}
@@ -59,6 +64,11 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps, 2 rates)")
     p.add_argument("--out", type=Path, default=None,
                    help="where figures/ and results.json go (default: this folder; with --smoke a temporary one)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--serial", action="store_true", help="run the members in this process (default with --smoke)")
+    where.add_argument("--scheduler", default=None, help="address of a running Dask scheduler")
+    p.add_argument("--resume", action="store_true", help="continue the sweep in OUT/runs (default: run it afresh)")
+    p.add_argument("--write-sweep", action="store_true", help="write sweep.toml (the full study's members) and stop")
     return p.parse_args(argv)
 
 
@@ -80,21 +90,45 @@ def window(rate: float, pore_volume: float, t_end: float, dt: float) -> tuple[fl
     return t_q, t_q / n
 
 
-def coupled(case) -> dict:
-    """One coupled run: extremes over the run and the end state."""
-    t0 = time.perf_counter()
-    run = CoupledRun(build_problem(case))
-    rows = [r.row for r in run.steps()]
-    u = [r["max_displacement_m"] for r in rows]
-    vm = [r["max_von_mises_Pa"] for r in rows]
-    bt = run.sim.breakthrough_time
-    return {"rate_m3_s": case.drainage.rate, "max_displacement_m": max(u), "max_von_mises_Pa": max(vm),
-            "final_displacement_m": u[-1], "final_von_mises_Pa": vm[-1], "final_sw": rows[-1]["sw"],
+def sweep_dict(rates, pore_volume: float, base, smoke: bool) -> dict:
+    """The coupled runs as a sweep: ``case.toml`` at each rate with its window (zip of rate, t_end, dt)."""
+    wins = [window(q, pore_volume, base.drainage.t_end, base.coupling.exchange_dt) for q in rates]
+    return {"base": {"case": "case.toml", "smoke": smoke, "output": {"vtk": False, "figures": False}},
+            "vary": {"mode": "zip", "drainage.rate": [float(q) for q in rates],
+                     "drainage.t_end": [w[0] for w in wins], "coupling.exchange_dt": [w[1] for w in wins]},
+            "plot": {"x": "drainage.rate", "y": ["max_displacement_m", "max_von_mises_Pa", "final_sw"],
+                     "logx": True, "logy": True}}
+
+
+def sweep_toml(d: dict) -> str:
+    """TOML text of :func:`sweep_dict` (what ``--write-sweep`` writes)."""
+    def val(v):
+        return repr(v) if not isinstance(v, (bool, str)) else ("true" if v is True else "false" if v is False
+                                                                 else f'"{v}"')
+    b, v, p = d["base"], d["vary"], d["plot"]
+    lines = ["# The coupled runs of run.py (written by `python run.py --write-sweep`): case.toml at each rate,",
+             "# with the rate-adapted window (<= 20 s or 2 pore volumes; <= 0.05 pore volumes per step).",
+             "# `porefsi sweep sweep.toml -o DIR` runs them; run.py adds the fluid-only scan and the figure.",
+             "[base]", f"case = {val(b['case'])}", f"smoke = {val(b['smoke'])}",
+             *(f"output.{k} = {val(x)}" for k, x in b["output"].items()), "", "[vary]", f"mode = {val(v['mode'])}"]
+    lines += [f'"{k}" = [{", ".join(val(x) for x in xs)}]' for k, xs in v.items() if k != "mode"]
+    lines += ["", "[plot]", f"x = {val(p['x'])}", f"y = [{', '.join(val(y) for y in p['y'])}]",
+              f"logx = {val(p['logx'])}", f"logy = {val(p['logy'])}"]
+    return "\n".join(lines) + "\n"
+
+
+def member_row(rec: dict, folder: Path) -> dict:
+    """One coupled run's row from its sweep record and time series: extremes over the run, end state."""
+    s = rec["summary"]
+    with open(folder / "timeseries.csv", newline="") as fh:
+        rows = [{k: float(x) if x != "" else float("nan") for k, x in r.items()} for r in csv.DictReader(fh)][1:]
+    return {"rate_m3_s": rec["values"]["drainage.rate"], "max_displacement_m": s["max_displacement_m"],
+            "max_von_mises_Pa": s["max_von_mises_Pa"], "final_displacement_m": rows[-1]["max_displacement_m"],
+            "final_von_mises_Pa": rows[-1]["max_von_mises_Pa"], "final_sw": rows[-1]["sw"],
             "final_inlet_pressure_Pa": rows[-1]["inlet_pressure_Pa"],
             "max_pore_pressure_Pa": max(r["max_pore_pressure_Pa"] for r in rows),
-            "breakthrough_time_s": None if not np.isfinite(bt) else float(bt),
-            "mass_balance_error": max(r["mass_balance_error"] for r in rows),
-            "wall_seconds": time.perf_counter() - t0}
+            "breakthrough_time_s": s["breakthrough_time_s"], "mass_balance_error": s["mass_balance_error"],
+            "wall_seconds": s["wall_seconds"], "cpu_seconds": s["cpu_seconds"], "member": rec["name"]}
 
 
 def fluid_scan(net, fluids, axis: str, rates, t_end: float, window_end) -> list[dict]:
@@ -147,15 +181,25 @@ def main(argv=None) -> dict:
             q_meas = float(np.exp(np.log(a["rate_m3_s"]) + w * (np.log(b["rate_m3_s"]) - np.log(a["rate_m3_s"]))))
             break
 
+    rates = RATES_SMOKE if args.smoke else RATES_FULL
+    spec = sweep_dict(rates, pore_volume, base, args.smoke)
+    if args.write_sweep:
+        (HERE / "sweep.toml").write_text(sweep_toml(sweep_dict(RATES_FULL, pore_volume, base, False)))
+        print(f"wrote {HERE / 'sweep.toml'}")
+        return {}
+    sweep = sweep_from_dict(spec, base_dir=HERE, where="flow_rates sweep")
+    res = run_sweep(sweep, out / "runs", serial=args.serial or (args.smoke and not args.scheduler),
+                    scheduler=args.scheduler, overwrite=not args.resume)
+    failed = [r["name"] for r in res.records if r["status"] != "completed"]
+    if failed:
+        raise SystemExit(f"flow_rates: members {failed} failed; see {res.table}")
     rows = []
-    for q in (RATES_SMOKE if args.smoke else RATES_FULL):
-        t_end, dt = window(q, pore_volume, base.drainage.t_end, base.coupling.exchange_dt)
-        if args.smoke:
-            t_end = 2 * dt
-        r = coupled(base.replace(drainage={"rate": q, "t_end": t_end}, coupling={"exchange_dt": dt}))
-        r["t_end_s"], r["exchange_dt_s"] = t_end, dt
+    for m, rec in zip(sweep.members, res.records, strict=True):
+        q = m.case.drainage.rate
+        r = member_row(rec, out / "runs" / m.name)
+        r["t_end_s"], r["exchange_dt_s"] = m.case.drainage.t_end, m.case.coupling.exchange_dt
         r["capillary_number"] = fl.capillary_number(q, area)
-        r["injected_pore_volumes"] = q * t_end / pore_volume
+        r["injected_pore_volumes"] = q * r["t_end_s"] / pore_volume
         r["paper_case"] = next((n for n, v in PAPER_CASES.items() if np.isclose(v, q, rtol=1e-9, atol=0.0)), None)
         rows.append(r)
         print(f"  Q = {q:.3g} m^3/s (Ca {r['capillary_number']:.2g}): max |u| = {r['max_displacement_m']:.4e} m, "
@@ -222,6 +266,7 @@ def main(argv=None) -> dict:
         "critical_rate_estimate_m3_s": q_star, "critical_rate_measured_m3_s": q_meas,
         "critical_capillary_number": fl.capillary_number(q_star, area),
         "coupled": rows, "fluid_scan": scan, "paper": PAPER, "figures": [str(fig_path.relative_to(out))],
+        "sweep_table": str(res.table.relative_to(out)),
     }
     (out / "results.json").write_text(json.dumps(results, indent=1) + "\n", encoding="utf-8")
     print(f"flow_rates: Q* = {q_star:.3g} m^3/s estimated, {q_meas} measured (Ca* = "

@@ -11,24 +11,34 @@ rate 0 (drainage only, the control), and draws:
 - ``permeability_vs_time.png`` (fig. 15);
 - ``network_before.png`` / ``network_after.png`` (fig. 14): pores coloured by radius change.
 
-Usage: python cases/strain_rate/run.py [--smoke] [--out DIR]
+The four runs are the members of a sweep (``sweep.toml``; ``porefsi sweep sweep.toml -o DIR`` runs
+the same members) into ``runs/<member>/`` with ``runs/sweep.csv``, on a local Dask cluster
+(``--serial``: in this process, the default with ``--smoke``; ``--scheduler ADDRESS``: an existing
+cluster). Each member writes its solid field at every exchange step (``vtk/solid_NNNN.vtu``) and
+its pores (``pores/step_NNNN.npz``): the figures are drawn from those files.
+
+Usage: python cases/strain_rate/run.py [--smoke] [--out DIR] [--serial | --scheduler ADDRESS] [--resume]
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import sys
 import tempfile
 import time
+import types
 from pathlib import Path
 
+import meshio
 import numpy as np
 
 from porefsi import plot
 from porefsi.case.config import load_case, smoke_case
-from porefsi.case.run import run_case
 from porefsi.coupling.problem import build_problem
+from porefsi.io.results import read_pore_steps
+from porefsi.sweep import load_sweep, run_sweep, sweep_from_dict
 
 HERE = Path(__file__).resolve().parent
 
@@ -46,14 +56,27 @@ def _plt():
     return plt
 
 
-def run_rate(case, rate: float, out: Path) -> dict:
-    """One coupled run at ``rate``; keeps every step's displacement and network."""
-    recs = []
-    c = case.replace(name=f"{case.name}-{rate:g}", solid={"strain_rate": rate})
-    res = run_case(c, out / f"rate_{rate:g}", figures=False, progress=False,
-                   on_record=lambda r: recs.append(r))
-    return {"rate": rate, "summary": res.summary, "ts": res.timeseries,
-            "U": [r.displacement for r in recs], "t": [r.t for r in recs], "nets": [r.network for r in recs]}
+def load_run(rec: dict, folder: Path) -> dict:
+    """One member's results from its folder: summary, time series, displacement and pores at every step."""
+    with open(folder / "timeseries.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    ts = {k: [float(r[k]) if r[k] != "" else float("nan") for r in rows] for k in rows[0]}
+    steps = read_pore_steps(folder)[1:]  # step 0 is the initial state
+    U = [meshio.read(folder / "vtk" / f"solid_{s['step']:04d}.vtu").point_data["displacement"] for s in steps]
+    return {"rate": rec["values"]["solid.strain_rate"], "summary": rec["summary"], "ts": ts, "U": U,
+            "t": [s["time_s"] for s in steps],
+            "nets": [types.SimpleNamespace(pore_radius=s["pore_radius_m"], pore_coords=s["pore_coords_m"])
+                     for s in steps]}
+
+
+def the_sweep(smoke: bool):
+    """``sweep.toml``; with ``smoke`` its seconds-long variant at the lowest and highest rate."""
+    sweep = load_sweep(HERE / "sweep.toml")
+    if not smoke:
+        return sweep
+    d = {"base": {"case": "case.toml", "smoke": True, "output": {"vtk": True, "snapshot_times": [1.0, 2.0]}},
+         "vary": {"solid.strain_rate": [RATES[0], RATES[-1]]}}
+    return sweep_from_dict(d, base_dir=HERE, where="strain_rate smoke sweep")
 
 
 def pick_nodes(mesh, length: float) -> list[int]:
@@ -153,7 +176,8 @@ def figures(runs: list[dict], problem, nodes: list[int], fig_dir: Path) -> list[
     lim = max(float(np.max(np.abs(change))), 1e-6)
     made.append(plot.render_network(net0.pore_coords, net0.pore_radius, net0.throat_conns, np.zeros(net0.n_pores),
                                     fig_dir / "network_before.png", label="radius change (%)", clim=(-lim, lim)))
-    made.append(plot.render_network(net1.pore_coords, net1.pore_radius, net1.throat_conns, change,
+    # the geometric update moves and resizes pores; the throats (net0.throat_conns) stay
+    made.append(plot.render_network(net1.pore_coords, net1.pore_radius, net0.throat_conns, change,
                                     fig_dir / "network_after.png", label="radius change (%)", clim=(-lim, lim)))
     return [Path(m).name for m in made]
 
@@ -162,16 +186,24 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps)")
     ap.add_argument("--out", type=Path, default=None, help="output directory (default: this folder)")
+    where = ap.add_mutually_exclusive_group()
+    where.add_argument("--serial", action="store_true", help="run the members in this process (default with --smoke)")
+    where.add_argument("--scheduler", default=None, help="address of a running Dask scheduler")
+    ap.add_argument("--resume", action="store_true", help="continue the sweep in OUT/runs (default: run it afresh)")
     args = ap.parse_args(argv)
     out = args.out or (Path(tempfile.mkdtemp(prefix="porefsi-strain_rate-")) if args.smoke else HERE)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     case = load_case(HERE / "case.toml")
-    rates = RATES
     if args.smoke:
         case = smoke_case(case)
-        rates = (0.0, RATES[-1])
-    runs = [run_rate(case, r, out / "runs") for r in rates]
+    sweep = the_sweep(args.smoke)
+    res = run_sweep(sweep, out / "runs", serial=args.serial or (args.smoke and not args.scheduler),
+                    scheduler=args.scheduler, overwrite=not args.resume)
+    failed = [r["name"] for r in res.records if r["status"] != "completed"]
+    if failed:
+        raise SystemExit(f"strain_rate: members {failed} failed; see {res.table}")
+    runs = [load_run(r, out / "runs" / m.name) for m, r in zip(sweep.members, res.records, strict=True)]
     problem = build_problem(case)
     nodes = pick_nodes(problem.mesh, problem.image.extent[2])
     made = figures(runs, problem, nodes, out / "figures")
@@ -207,6 +239,7 @@ def main(argv=None) -> int:
         "runs": per_rate,
         "figures": made,
         "smoke": bool(args.smoke),
+        "sweep_table": str(res.table.relative_to(out)),
         "wall_s": time.perf_counter() - t0,
     }
     (out / "results.json").write_text(json.dumps(res, indent=1))

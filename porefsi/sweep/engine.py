@@ -125,6 +125,9 @@ def run_sweep(sweep: Sweep, out: str | Path, *, serial: bool = False, scheduler:
                     done(run_member(t))
             else:
                 _run_dask(client, tasks, retries, done)
+        except KeyboardInterrupt as exc:
+            raise KeyboardInterrupt(f"{exc or 'stopped'}; every member keeps its last checkpoint: run the same "
+                                    "command again to continue the sweep") from None
         finally:
             bar.close()
         fig = table.plot_sweep(out / FIGURE_FILE, sweep, records) if figures is not False else None

@@ -89,11 +89,15 @@ def plot_sweep(path: str | Path, sweep, records: Sequence[dict | None]) -> Path 
     cats = list(dict.fromkeys(str(x) for x in xs))
     plt = _plt()
     n = len(spec.y)
-    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 3.6), squeeze=False)
+    ncol = min(3, n)
+    nrow = -(-n // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.4 * ncol, 3.6 * nrow), squeeze=False)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
     groups: dict = {}
     for m, r in done:
         groups.setdefault(tuple(m.values[k] for k in others), []).append((m, r))
-    for ax, field in zip(axes[0], spec.y, strict=True):
+    for ax, field in zip(axes.flat, spec.y, strict=False):
         for key, items in groups.items():
             pts = [(_x(m.values[spec.x], numeric, cats), _number((r["summary"] or {}).get(field))) for m, r in items]
             pts = sorted(p for p in pts if p[1] is not None)
