@@ -92,7 +92,8 @@ def coupled(case, update: str, out: Path, tag: str | None = None, reuse_extracti
     tag = tag or update
     c = case.replace(name=f"{case.name}-{tag}", network={"update": update}, **sections)
     c0 = time.process_time()
-    res = run_case(c, out / f"run_{tag}", figures=False, progress=False, reuse_extractions=reuse_extractions)
+    res = run_case(c, out / f"run_{tag}", figures=False, progress=False, reuse_extractions=reuse_extractions,
+                   overwrite=True)
     s = res.summary
     return {"cpu_s": time.process_time() - c0, "wall_s": s["wall_seconds"], "stages_cpu_s": s["cpu_seconds_by_stage"],
             "stages_wall_s": s["seconds_by_stage"], "reextraction": s["reextraction"],

@@ -123,7 +123,7 @@ def main(argv=None) -> dict:
                 }
 
     t0, c0 = time.perf_counter(), time.process_time()
-    res = run_case(case, work, progress=False, figures=False, on_record=keep)
+    res = run_case(case, work, progress=False, figures=False, on_record=keep, overwrite=True)
     run_seconds, run_cpu = time.perf_counter() - t0, time.process_time() - c0
     if res.summary["status"] != "completed":
         raise RuntimeError(f"drainage run did not complete: {res.summary}")

@@ -61,7 +61,7 @@ def part_a(case, out: Path) -> dict:
         rows.append(dict(rec.row))
         last["U"] = rec.displacement
 
-    res = run_case(case, out / "run_paper_loads", figures=False, on_record=keep, progress=False)
+    res = run_case(case, out / "run_paper_loads", figures=False, on_record=keep, progress=False, overwrite=True)
     # the deformed image of the final displacement against the reference image
     p = build_problem(case)
     img = deformed_image(p.image, p.mesh.points, last["U"], p.node_spacing)
@@ -208,7 +208,7 @@ def part_c(case, out: Path, t_end: float) -> dict:
     for update in ("reextract", "geometric"):
         c = case.replace(name=f"{case.name}-strained-{update}", solid={"strain_rate": 1e-3},
                          drainage={"t_end": t_end}, network={"update": update})
-        ts = run_case(c, out / f"run_strained_{update}", figures=False, progress=False).timeseries
+        ts = run_case(c, out / f"run_strained_{update}", figures=False, progress=False, overwrite=True).timeseries
         res[update] = {k: ts[k] for k in ("time_s", "permeability_m2", "mean_pore_radius_m", "precoupling_iterations",
                                           "precoupling_Ea", "sw", "inlet_pressure_Pa", "mass_balance_error")}
     r = np.asarray(res["reextract"]["mean_pore_radius_m"], float)
