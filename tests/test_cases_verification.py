@@ -136,8 +136,8 @@ def test_p2_check_load_and_interpolation():
     # the P2 check's pore-wall load is the P2-consistent traction (scikit-fem's facet quadrature of -P n
     # against the P2 basis, an independent assembly), with zero vertex weights; its field evaluation
     # reproduces the nodal values and any quadratic field exactly
+    from porefsi.case import problem_from_case as build_problem
     from porefsi.case.config import load_case
-    from porefsi.coupling.problem import build_problem
     from porefsi.solid import forms
 
     run = _load("run")

@@ -35,9 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
+from porefsi.case import coupled_options, load_case_image
 from porefsi.case.config import Case, load_case, smoke_case
 from porefsi.case.run import run_case
-from porefsi.coupling.problem import fluids_from_case, load_case_image
 from porefsi.flow.drainage import simulate_drainage
 from porefsi.image.ops import percolating_cluster
 from porefsi.network.extract import extract_network
@@ -80,7 +80,7 @@ def fluid_only(case) -> dict:
     w, c = lap("image", w0, c0)
     net = extract_network(percolating_cluster(img, case.image.axis).image).network
     w, c = lap("extraction", w, c)
-    res = simulate_drainage(net, fluids_from_case(case), rate=case.drainage.rate, t_end=case.drainage.t_end,
+    res = simulate_drainage(net, coupled_options(case).fluids, rate=case.drainage.rate, t_end=case.drainage.t_end,
                             axis=case.image.axis)
     lap("fluid", w, c)
     return {"cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0, "stages_cpu_s": cpu,

@@ -49,11 +49,14 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from porefsi.case import problem_from_case  # noqa: E402
 from porefsi.case.config import load_case  # noqa: E402
-from porefsi.coupling.loop import CoupledRun  # noqa: E402
-from porefsi.coupling.problem import build_problem  # noqa: E402
-from porefsi.coupling.relaxation import aitken_omega  # noqa: E402
-from porefsi.coupling.update import geometric_update, update_nodes  # noqa: E402
+from porefsi.coupling import (  # noqa: E402
+    CoupledRun,  # noqa: E402
+    aitken_omega,  # noqa: E402
+    geometric_update,
+    update_nodes,
+)
 from porefsi.errors import ConvergenceError, PorefsiError  # noqa: E402
 from porefsi.flow.drainage import DrainageSimulator  # noqa: E402
 from porefsi.solid.static import solve_static  # noqa: E402
@@ -93,13 +96,13 @@ def first_step(base, regime: str, material: str, E: float, relaxation: str, n_it
     out = {"regime": regime, "material": material, "E": E, "relaxation": relaxation}
     c0 = time.process_time()
     try:
-        run = CoupledRun(build_problem(case))
+        run = CoupledRun(problem_from_case(case))
         for rec in run.steps():  # "converges" only when an iterate repeats bit for bit (residual 0)
             n_used = int(rec.row["subiterations"])
             out.update(status="ran", history=[0.0])
         if n_used > 1:  # the same deterministic iteration stopped one short returns the history before the 0
             try:
-                next(CoupledRun(build_problem(case.replace(coupling={"subiterations": n_used - 1}))).steps())
+                next(CoupledRun(problem_from_case(case.replace(coupling={"subiterations": n_used - 1}))).steps())
             except ConvergenceError as exc:
                 out["history"] = [float(h) for h in exc.history] + [0.0]
     except ConvergenceError as exc:
@@ -129,7 +132,7 @@ def plain_pressure(base, regime: str) -> dict:
     rate, dt = REGIMES[regime]
     case = base.replace(solid={"E": 20e9, "material": "svk"}, drainage={"rate": rate, "t_end": dt},
                         coupling={"exchange_dt": dt, "subiterations": 1, "integrator": "static"})
-    rec = next(CoupledRun(build_problem(case)).steps())
+    rec = next(CoupledRun(problem_from_case(case)).steps())
     return {"inlet_pressure_Pa": rec.row["inlet_pressure_Pa"], "max_pore_pressure_Pa": rec.row["max_pore_pressure_Pa"],
             "sw": rec.row["sw"]}
 
@@ -140,7 +143,7 @@ def multistep(base, E: float, relaxation: str, t_end: float) -> dict:
     out = {"E": E, "relaxation": relaxation, "iterations": [], "residual": [], "max_displacement_m": []}
     c0 = time.process_time()
     try:
-        for rec in CoupledRun(build_problem(case)).steps():
+        for rec in CoupledRun(problem_from_case(case)).steps():
             out["iterations"].append(rec.row["subiterations"])
             out["residual"].append(rec.row["coupling_residual"])
             out["max_displacement_m"].append(rec.row["max_displacement_m"])
@@ -222,10 +225,10 @@ def substeps(problem, n_iter: int, relaxation: str, kappa: float = 1.0, target=N
     with the relaxed total displacement, Aitken as in ``porefsi.coupling.loop``. The solid is
     loaded with ``P* + kappa (P(U_k) - P*)`` (``target = (U*, P*)``; kappa = 1: the DPN's own).
     """
-    case = problem.case
-    t1 = case.coupling.exchange_dt
+    opts = problem.options
+    t1 = opts.coupling.exchange_dt
     model, itf = problem.model, problem.interface
-    sim0 = DrainageSimulator(problem.network, problem.fluids, rate=case.drainage.rate, axis=case.image.axis)
+    sim0 = DrainageSimulator(problem.network, problem.fluids, rate=opts.drainage.rate, axis=opts.axis)
     nodes = update_nodes(problem.network.pore_coords, problem.network.pore_radius, itf.pore_nodes,
                          problem.mesh.points, problem.node_spacing)
     u0 = np.zeros(model.n_dofs)
@@ -283,7 +286,7 @@ def amplified(base, smoke: bool) -> dict:
     n_iter = 10 if smoke else N_ITER
     kappas = AMP_KAPPAS_SMOKE if smoke else AMP_KAPPAS
     c0 = time.process_time()
-    problem = build_problem(_amp_case(base, n_iter))
+    problem = problem_from_case(_amp_case(base, n_iter))
     fixed = substeps(problem, n_iter, "aitken")  # the physical step, converged to round-off
     target = (fixed["U"], fixed["P"])
     rows = []
@@ -313,7 +316,7 @@ def amplified(base, smoke: bool) -> dict:
     g_phys = next(r for r in rows if r["kappa"] == 1.0 and r["relaxation"] == "none")["factor"]
     mech = None
     if not smoke:  # the mechanism at the softest E that runs: the filling pore's load vs its volume
-        mp = build_problem(_amp_case(base, 10).replace(solid={"E": MECH_E}))
+        mp = problem_from_case(_amp_case(base, 10).replace(solid={"E": MECH_E}))
         mech = substeps(mp, 10, "none", trace=True)
         mech = {"E": MECH_E, "history": mech["history"], **mech["trace"]}
         ld = np.asarray(mech["load_Pa"])

@@ -35,8 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from porefsi.case import problem_from_case
 from porefsi.case.config import load_case, smoke_case
-from porefsi.coupling.problem import build_problem
 from porefsi.flow.drainage import DrainageSimulator
 from porefsi.flow.invasion import invasion_percolation
 from porefsi.flow.permeability import absolute_permeability
@@ -157,7 +157,7 @@ def main(argv=None) -> dict:
     if args.smoke:
         base = smoke_case(base)
     out = output_dir(args, "flow_rates")
-    prob = build_problem(base)
+    prob = problem_from_case(base)
     net, fl, axis = prob.network, prob.fluids, base.image.axis
     ax_i = "xyz".index(axis)
     extent = np.asarray(prob.image.extent, float)

@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
+from porefsi.case import problem_from_case
 from porefsi.case.config import load_case, smoke_case
 from porefsi.case.run import run_case
-from porefsi.coupling.problem import build_problem
-from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change, update_nodes
+from porefsi.coupling import deformed_image, geometric_update, mean_size_change, update_nodes
 from porefsi.flow.permeability import absolute_permeability
 from porefsi.image.ops import percolating_cluster
 from porefsi.network.extract import extract_network
@@ -63,7 +63,7 @@ def part_a(case, out: Path) -> dict:
 
     res = run_case(case, out / "run_paper_loads", figures=False, on_record=keep, progress=False, overwrite=True)
     # the deformed image of the final displacement against the reference image
-    p = build_problem(case)
+    p = problem_from_case(case)
     img = deformed_image(p.image, p.mesh.points, last["U"], p.node_spacing)
     changed = int(np.count_nonzero(img.phases != p.image.phases))
     return {
@@ -86,7 +86,7 @@ def part_b(case, strains) -> dict:
     """One-way strain sweep: re-extraction (2 iterations) vs geometric update."""
     rate = 1e-3  # 1/s; the static solve at time t = strain / rate applies the strain
     case = case.replace(solid={"strain_rate": rate}, network={"update": "geometric"})
-    p = build_problem(case)
+    p = problem_from_case(case)
     axis = case.image.axis
     net0 = p.network
     k0 = absolute_permeability(net0, axis).k_m2

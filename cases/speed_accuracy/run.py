@@ -41,10 +41,9 @@ import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
 from porefsi._version import __version__  # noqa: E402
+from porefsi.case import problem_from_case  # noqa: E402
 from porefsi.case.config import case_to_toml, load_case, smoke_case  # noqa: E402
-from porefsi.coupling.loop import CoupledRun  # noqa: E402
-from porefsi.coupling.problem import build_problem  # noqa: E402
-from porefsi.coupling.update import displacement_on_grid  # noqa: E402
+from porefsi.coupling import CoupledRun, displacement_on_grid  # noqa: E402
 from porefsi.errors import PorefsiError  # noqa: E402
 from porefsi.flow.drainage import DrainageSimulator  # noqa: E402
 
@@ -110,7 +109,7 @@ def run_variant(case, skip_solves=None) -> dict:
     c0, w0 = time.process_time(), time.perf_counter()
     res = {"status": "ok", "times": [0.0], "U": [], "rows": []}
     try:
-        prob = build_problem(case)
+        prob = problem_from_case(case)
         run = CoupledRun(prob)
         if skip_solves is not None:  # not a case-file key: the DPN option set through the API
             run.sim = DrainageSimulator(prob.network, prob.fluids, rate=case.drainage.rate, axis=case.image.axis,

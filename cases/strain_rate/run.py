@@ -35,8 +35,8 @@ import meshio
 import numpy as np
 
 from porefsi import plot
+from porefsi.case import problem_from_case
 from porefsi.case.config import load_case, smoke_case
-from porefsi.coupling.problem import build_problem
 from porefsi.io.results import read_pore_steps
 from porefsi.sweep import load_sweep, run_sweep, sweep_from_dict
 
@@ -204,7 +204,7 @@ def main(argv=None) -> int:
     if failed:
         raise SystemExit(f"strain_rate: members {failed} failed; see {res.table}")
     runs = [load_run(r, out / "runs" / m.name) for m, r in zip(sweep.members, res.records, strict=True)]
-    problem = build_problem(case)
+    problem = problem_from_case(case)
     nodes = pick_nodes(problem.mesh, problem.image.extent[2])
     made = figures(runs, problem, nodes, out / "figures")
     per_rate = []

@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from porefsi.case import problem_from_case
 from porefsi.case.config import load_case, smoke_case
-from porefsi.coupling.loop import CoupledRun
-from porefsi.coupling.problem import build_problem
+from porefsi.coupling import CoupledRun
 from porefsi.flow.invasion import invasion_percolation
 
 HERE = Path(__file__).resolve().parent
@@ -65,7 +65,7 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
 def run_one(case) -> dict:
     """One coupled run; returns its time series, final fields and timings."""
     t0 = time.perf_counter()
-    prob = build_problem(case)
+    prob = problem_from_case(case)
     t_setup = time.perf_counter() - t0
     run = CoupledRun(prob)
     rows = [run.initial_record().row]
@@ -107,7 +107,7 @@ def main(argv=None) -> dict:
     traction = run_one(base.replace(interface={"method": "traction"}))
     # Sampling noise: the same N with seed 1, applied to the same final pressures.
     for n in ns:
-        prob1 = build_problem(base.replace(interface={"n_test_points": n, "seed": base.interface.seed + 1}))
+        prob1 = problem_from_case(base.replace(interface={"n_test_points": n, "seed": base.interface.seed + 1}))
         runs[n]["F_seed1_rel"] = _rel(prob1.interface.nodal_forces(runs[n]["P"]), runs[n]["F"])
     table = []
     for n in ns:

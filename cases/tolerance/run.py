@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from porefsi.case import problem_from_case
 from porefsi.case.config import load_case, smoke_case
-from porefsi.coupling.loop import CoupledRun
-from porefsi.coupling.problem import build_problem
+from porefsi.coupling import CoupledRun
 
 HERE = Path(__file__).resolve().parent
 EPS_FULL = [0.0, 2.5e-6, 5e-6, 1e-5, 2e-5, 4e-5, 8e-5]  # m; 8e-5 is the value of the paper's figure 11
@@ -59,7 +59,7 @@ def output_dir(args: argparse.Namespace, name: str) -> Path:
 def run_one(case) -> dict:
     """One coupled run; the final displacement/force fields and interface statistics."""
     t0 = time.perf_counter()
-    prob = build_problem(case)
+    prob = problem_from_case(case)
     run = CoupledRun(prob)
     last = None
     for rec in run.steps():

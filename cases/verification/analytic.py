@@ -68,7 +68,7 @@ def study_lame(n_cells=(16, 20, 24), cavity_fraction: float = 0.2, E: float = 20
     (b = L) and circumscribed (b = sqrt(3) L) clamped spheres (a larger clamped domain is more
     compliant, so the cube's work lies between them), the load-balance errors and wall times.
     """
-    from porefsi.coupling.interface import (
+    from porefsi.coupling import (
         boundary_facet_normals,
         facet_pores_from_labels,
         hull_interface,

@@ -40,11 +40,15 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from porefsi.case import problem_from_case
 from porefsi.case.config import case_to_toml, load_case, smoke_case
-from porefsi.coupling.interface import Interface, boundary_facet_normals, facet_pores_from_labels
-from porefsi.coupling.loop import CoupledRun
-from porefsi.coupling.problem import build_problem
-from porefsi.coupling.update import displacement_on_grid
+from porefsi.coupling import (
+    CoupledRun,
+    TractionInterface,
+    boundary_facet_normals,
+    displacement_on_grid,
+    facet_pores_from_labels,
+)
 from porefsi.solid.model import SolidModel
 from porefsi.solid.static import solve_static
 
@@ -108,7 +112,7 @@ def make_case(base, spec, t_end):
 def run_coupled(case) -> dict:
     """Coupled run to ``case.drainage.t_end``; node grid indices and the final displacement."""
     t0, c0 = time.perf_counter(), time.process_time()
-    p = build_problem(case)
+    p = problem_from_case(case)
     run = CoupledRun(p)
     rec = None
     for rec in run.steps():  # noqa: B007 - the last record is the one compared
@@ -213,7 +217,7 @@ def p2_consistent_problem(p):
     facets = mesh.facets_tagged("pore_wall")
     normals, _ = boundary_facet_normals(mesh.points, mesh.tets, facets)
     owner = facet_pores_from_labels(mesh.points, facets, normals, p.extraction.labels, p.image.voxel_size,
-                                    p.image.origin, max_steps=max(4, 2 * p.case.solid.coarsen))
+                                    p.image.origin, max_steps=p.options.interface.max_steps)
     use = owner >= 0
     f, pu = facets[use], owner[use]
     nrm, area = boundary_facet_normals(mesh.points, mesh.tets, f)
@@ -231,7 +235,7 @@ def p2_consistent_problem(p):
     res = np.stack([np.asarray(T2[k::3].sum(axis=0)).ravel() for k in range(3)], axis=1)
     if not np.allclose(res, itf.wall_vector, rtol=1e-10, atol=1e-12 * float(np.abs(itf.wall_vector).max())):
         raise RuntimeError("the P2 traction operator's resultants differ from the interface's wall vectors")
-    itf2 = Interface(T2, "traction", itf.wall_area, itf.pore_nodes, 0, itf.seconds, wall_vector=itf.wall_vector)
+    itf2 = TractionInterface(T2, itf.wall_area, itf.pore_nodes, 0, itf.seconds, wall_vector=itf.wall_vector)
     model = copy.copy(p.model)
     model.__class__ = LagrangeNodeLoads
     return dataclasses.replace(p, interface=itf2, model=model)
@@ -301,7 +305,7 @@ def run_p2_check(case, ref_grid: np.ndarray) -> dict:
     show how much the P2-consistent load matters.
     """
     t0, c0 = time.perf_counter(), time.process_time()
-    p1 = build_problem(case)
+    p1 = problem_from_case(case)
     p = p2_consistent_problem(p1)
     run = CoupledRun(p)
     rec = None

@@ -3,7 +3,7 @@
 Outputs in the run directory:
 
 - ``case.toml``: the resolved case (every key);
-- ``timeseries.csv``: one row per exchange step (:data:`porefsi.coupling.loop.TIMESERIES_COLUMNS`);
+- ``timeseries.csv``: one row per exchange step (:data:`porefsi.coupling.records.TIMESERIES_COLUMNS`);
 - ``summary.json``: headline figures (and ``status``/``error`` if the run failed);
 - ``solid.pvd`` + ``vtk/solid_NNNN.vtu`` (displacement, von Mises, nodal pore force) and
   ``network.pvd`` + ``vtk/network_NNNN.vtp`` (pressure, saturation, radius) at the snapshot times;
@@ -42,12 +42,13 @@ from pathlib import Path
 import numpy as np
 
 from porefsi._version import __version__
-from porefsi.case import _plausible
 from porefsi.case import _rundir as _rd
 from porefsi.case.config import Case, case_to_dict, case_to_toml
-from porefsi.coupling.loop import TIMESERIES_COLUMNS, CoupledRun, ExchangeRecord
-from porefsi.coupling.problem import build_problem
+from porefsi.case.problem import problem_from_case
+from porefsi.coupling.loop import CoupledRun
+from porefsi.coupling.records import TIMESERIES_COLUMNS, ExchangeRecord
 from porefsi.errors import InputError, PorefsiError
+from porefsi.flow import plausible as _plausible
 from porefsi.image.io import check_voxel_size
 from porefsi.io import interrupt, results, rundir
 from porefsi.io.network_vtk import write_network_vtp
@@ -160,12 +161,12 @@ def _write_snapshot(out: Path, rec: ExchangeRecord, run: CoupledRun, series: dic
     series["network"].add(rec.t, net_file)
 
 
-def _figures(out: Path, ts: dict, snapshots: list, run: CoupledRun, progress: bool) -> list[str]:
+def _figures(out: Path, ts: dict, snapshots: list, run: CoupledRun, title: str) -> list[str]:
     from porefsi import plot
 
     fig = out / "figures"
     fig.mkdir(exist_ok=True)
-    made = [plot.plot_timeseries(ts, fig / "timeseries.png", title=run.problem.case.name)]
+    made = [plot.plot_timeseries(ts, fig / "timeseries.png", title=title)]
     made.append(plot.plot_psd([(s["t"], s["radius"]) for s in snapshots], fig / "pore_size_distribution.png"))
     net0 = run.problem.network
     for s in snapshots:
@@ -262,7 +263,7 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     else:
         _rd.refuse_existing(out, overwrite)
         _rd.check_steps(case, force)
-    problem = build_problem(case)
+    problem = problem_from_case(case)
     _plausible.warn_injection_pressure(problem.network, case.image.axis, case.drainage.rate, case.fluids.mu_n)
     if not case.image.path and case.image.voxel_size is not None:  # a file's is checked when it is read
         check_voxel_size(case.image.voxel_size, "image.voxel_size")
@@ -370,7 +371,7 @@ def _execute(case: Case, out: Path, problem, state: dict | None, clock: _RunCloc
         raise
     ts = _columns(rows)
     _plausible.warn_pressure_reached(max((p for p in ts["inlet_pressure_Pa"] if math.isfinite(p)), default=math.nan))
-    made = _figures(out, ts, snapshots, run, progress) if (opts["figures"] and status == "completed") else []
+    made = _figures(out, ts, snapshots, run, case.name) if (opts["figures"] and status == "completed") else []
     summary = _write_summary(out, case, run, rows, setup_seconds, status, error, made, clock)
     return RunOutput(summary, out, ts)
 

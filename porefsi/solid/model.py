@@ -19,7 +19,7 @@ import scipy.sparse as sp
 
 from porefsi.errors import InputError
 from porefsi.solid import forms
-from porefsi.solid.assembly import P1Assembler, submatrix_selector
+from porefsi.solid.assembly import P1Assembler, p1_gradients, submatrix_selector
 from porefsi.solid.bc import Constraints, Traction
 from porefsi.solid.linsolve import (
     AdaptiveSolverFactory,
@@ -153,6 +153,13 @@ class SolidModel:
         if self._feb is None:
             self._feb = forms.make_basis(self.mesh, self.order)
         return self._feb
+
+    def vertex_gradients(self) -> np.ndarray:
+        """Gradients of the P1 (vertex) shape functions of every tetrahedron, (Ne, 4, 3), 1/m.
+
+        The fast path's assembler keeps them; otherwise they are computed from the mesh.
+        """
+        return self._p1.dN if self._p1 is not None else p1_gradients(self.mesh)[0]
 
     def full_displacement(self, u: np.ndarray, t: float) -> np.ndarray:
         """All dofs (n_full,) from the free dofs ``u`` (n,) and the prescribed motion at t."""
