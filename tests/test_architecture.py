@@ -214,3 +214,10 @@ def test_exported_names_are_not_shadowed_by_submodules():
                 for n in importlib.import_module(pkg).__all__
                 if isinstance(getattr(importlib.import_module(pkg), n), ModuleType)]
     assert not shadowed, f"exported names that are modules: {shadowed}"
+
+
+def test_the_api_page_lists_every_public_name():
+    """docs/api.md names every name ``porefsi`` exports (and the page's example runs: tests/test_docs.py)."""
+    page = (ROOT.parent / "docs" / "api.md").read_text(encoding="utf-8")
+    missing = [n for n in porefsi.__all__ if n != "__version__" and f"`{n}`" not in page]
+    assert not missing, f"docs/api.md does not list {missing}"
