@@ -111,7 +111,10 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--out", type=Path, default=None, help="where the sweeps run (default: a temporary folder)")
     p.add_argument("--skip-study", action="store_true", help="only the overhead measurements")
-    args = p.parse_args(argv)
+    p.add_argument("--quick", action="store_true", help="the first 3 members only")
+    args, _ = p.parse_known_args(argv)  # run_all.py passes every script the same arguments
+    if args.quick and args.members is None:
+        args.members = 3
     tmp = None
     if args.out is None:
         tmp = tempfile.TemporaryDirectory(prefix="porefsi-bench-sweep-")

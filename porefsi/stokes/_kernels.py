@@ -359,4 +359,4 @@ def schur_symmetric_gauss_seidel(pf, plo, phi, diag, b, x):
         for m in range(n):
             c = m if sweep == 0 else n - 1 - m
             dg, off = _schur_row(pf, plo, phi, diag, x, c)
-            x[c] = (b[c] + off) / dg
+            x[c] = (b[c] + off) / dg if dg > 0.0 else 0.0  # a voxel with no open face: a null row

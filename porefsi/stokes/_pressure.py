@@ -36,14 +36,14 @@ def _nbytes(M) -> int:
     return int(M.data.nbytes + M.indices.nbytes + M.indptr.nbytes)
 
 
-def _spectral_radius_jacobi(S: sp.csr_matrix, dinv: np.ndarray, iterations: int = 30) -> float:
-    """Largest eigenvalue of D^-1 S (S symmetric positive): power iteration in the D-inner product."""
+def _spectral_radius_jacobi(S: sp.csr_matrix, d: np.ndarray, dinv: np.ndarray, iterations: int = 30) -> float:
+    """Largest eigenvalue of D^-1 S (S symmetric positive semi-definite): power iteration in the D-inner product."""
     rng = np.random.default_rng(0)
-    x = rng.random(S.shape[0]) + 0.5
+    x = (rng.random(S.shape[0]) + 0.5) * (d > 0)
     lam = 0.0
     for _ in range(iterations):
         y = dinv * (S @ x)
-        lam = float(np.sqrt(np.dot(y, y / dinv) / np.dot(x, x / dinv)))
+        lam = float(np.sqrt(np.dot(y, d * y) / np.dot(x, d * x)))
         x = y / np.max(np.abs(y))
     return 1.1 * lam  # a little above, as pyamg's safety factor: over-smoothing diverges, under only slows
 
@@ -63,13 +63,14 @@ class PressureMultigrid:
         self.plo, self.phi, self.diag = system.p_lo, system.p_hi, system.diag
         self.pf = kern.pressure_faces(system.p_lo, system.p_hi, system.offsets, system.n_p)
         S = _csr(schur)
-        dinv = 1.0 / S.diagonal()
+        d = S.diagonal()
+        dinv = np.divide(1.0, d, out=np.zeros_like(d), where=d > 0)  # a voxel with no open face: a null row
         agg, _ = standard_aggregation(S)
         T, b_coarse = fit_candidates(agg, np.ones((S.shape[0], 1)))
         del agg
         T = _csr(T)
         ST = _csr(S @ T)
-        ST.data *= np.repeat(dinv * (OMEGA / _spectral_radius_jacobi(S, dinv)), np.diff(ST.indptr))
+        ST.data *= np.repeat(dinv * (OMEGA / _spectral_radius_jacobi(S, d, dinv)), np.diff(ST.indptr))
         P = _csr(T - ST)
         del ST, T
         SP = _csr(S @ P)
