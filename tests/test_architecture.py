@@ -221,3 +221,39 @@ def test_the_api_page_lists_every_public_name():
     page = (ROOT.parent / "docs" / "api.md").read_text(encoding="utf-8")
     missing = [n for n in porefsi.__all__ if n != "__version__" and f"`{n}`" not in page]
     assert not missing, f"docs/api.md does not list {missing}"
+
+
+CASES = ROOT.parent / "cases"
+
+
+def _public(module: str, name: str) -> bool:
+    """Whether ``from module import name`` uses porefsi's public API."""
+    parts = module.split(".")
+    if any(p.startswith("_") for p in parts) or len(parts) > 2:
+        return False  # a private module, or a module inside a subpackage: not the API
+    mod = importlib.import_module(module)
+    if name in getattr(mod, "__all__", ()):
+        return True
+    # a public subpackage or module of porefsi itself (``from porefsi import plot``)
+    return module == "porefsi" and not name.startswith("_") and f"porefsi.{name}" in MODULES
+
+
+def test_public_rule_refuses_private_and_deep_imports():
+    assert _public("porefsi", "CoupledRun") and _public("porefsi.coupling", "GeometricUpdate")
+    assert _public("porefsi", "plot") and _public("porefsi.plot", "render_solid")
+    assert not _public("porefsi.coupling.loop", "CoupledRun")  # a module inside a subpackage
+    assert not _public("porefsi.coupling", "same_topology")  # not in the package's __all__
+    assert not _public("porefsi.flow._drainage_checkpoint", "simulator_state")
+
+
+@pytest.mark.parametrize("path", sorted(CASES.rglob("*.py")), ids=lambda p: str(p.relative_to(CASES)))
+def test_cases_use_only_the_public_api(path):
+    """The case scripts are examples for users: they import porefsi's public API only (``porefsi`` and
+    the ``__all__`` of its subpackages), and their shared helpers from ``cases/_common.py``."""
+    bad = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            bad += [a.name for a in node.names if a.name.startswith("porefsi") and a.name != "porefsi"]
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("porefsi"):
+            bad += [f"{node.module}.{a.name}" for a in node.names if not _public(node.module, a.name)]
+    assert not bad, f"{path.name} uses porefsi beyond its public API: {bad}"

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -32,7 +32,7 @@ from porefsi.coupling.fluid_step import advance_fluid, carry_state, fluid_times,
 from porefsi.coupling.interface import Interface
 from porefsi.coupling.network_step import ExtractionCache, NetworkState, make_updater
 from porefsi.coupling.problem import CoupledProblem
-from porefsi.coupling.records import TIMESERIES_COLUMNS, TIMESERIES_DOCS, ExchangeRecord, IterationStats
+from porefsi.coupling.records import TIMESERIES_COLUMNS, TIMESERIES_DOCS, ExchangeRecord, Iterate, IterationStats
 from porefsi.coupling.relaxation import Relaxation
 from porefsi.coupling.solid_step import make_solid_stepper
 from porefsi.coupling.timing import StageClock
@@ -102,6 +102,12 @@ class CoupledRun:
         Re-extraction mode: serve the extraction of a voxel image seen before (by digest; the
         extraction is deterministic, so the result is the same bit for bit) instead of computing
         it again. False computes every re-extraction, as the paper does (benchmarks of its cost).
+    load_map : callable, optional
+        ``P -> P'`` applied to the pore pressures (Np,) before they load the solid (studies of the
+        fixed point, e.g. an amplified loop gain; default: the pressures themselves).
+    on_iteration : callable, optional
+        Called with an :class:`~porefsi.coupling.records.Iterate` after every fluid-solid iteration
+        (before its network update).
 
     Attributes
     ----------
@@ -124,8 +130,11 @@ class CoupledRun:
         a topology change), s.
     """
 
-    def __init__(self, problem: CoupledProblem, *, reuse_extractions: bool = True):
+    def __init__(self, problem: CoupledProblem, *, reuse_extractions: bool = True,
+                 load_map: Callable[[np.ndarray], np.ndarray] | None = None,
+                 on_iteration: Callable[[Iterate], None] | None = None):
         self.problem = problem
+        self.load_map, self.on_iteration = load_map, on_iteration
         opts = problem.options
         self.dt = opts.coupling.exchange_dt
         self.t_end = opts.drainage.t_end
@@ -239,11 +248,16 @@ class CoupledRun:
                 sim_labels = net_k.labels
                 pressures = advance_fluid(sim, times, t0)
             with clock("interface"):
-                loads = transfer_loads(net_k.interface, pressures, F0, t0, t1)
+                loaded = pressures if self.load_map is None else {s: self.load_map(P) for s, P in pressures.items()}
+                loads = transfer_loads(net_k.interface, loaded, F0, t0, t1)
             with clock("solid"):
                 u1, v1 = self.solid.step(self.u, self.v, t0, t1 - t0, loads.forces)
                 U1 = self.model.expand(u1, t1)
             U_use = relax(U1) if opts.coupling.subiterations > 1 else U1
+            if self.on_iteration is not None:
+                sub = opts.coupling.subiterations > 1
+                self.on_iteration(Iterate(stop.n_iter + 1, net_k, sim.state, pressures, U1, U_use,
+                                          relax.residuals[-1] if sub else None, relax.omegas[-1] if sub else None))
             with clock("update"):
                 net_prev, net_k = net_k, self.updater.update(U_use, self.current)
                 if stop.precoupling:  # the paper's pre-coupling measure between successive re-extractions (eq. 3.3)

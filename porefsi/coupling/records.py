@@ -9,7 +9,7 @@ import numpy as np
 from porefsi.flow.state import FlowState
 from porefsi.network.network import Network
 
-__all__ = ["ExchangeRecord", "IterationStats", "TIMESERIES_COLUMNS", "TIMESERIES_DOCS"]
+__all__ = ["ExchangeRecord", "IterationStats", "Iterate", "TIMESERIES_COLUMNS", "TIMESERIES_DOCS"]
 
 #: Columns of the per-exchange-step time series (``timeseries.csv``).
 TIMESERIES_COLUMNS = (
@@ -75,6 +75,43 @@ class IterationStats:
     def precoupling_ea(self) -> float:
         """The last ``E_a`` (NaN without re-extraction)."""
         return self.precoupling_history[-1] if self.precoupling_history else float("nan")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Iterate:
+    """One fluid-solid iteration within an exchange step.
+
+    For studies of the fixed point (``on_iteration`` of :class:`~porefsi.coupling.loop.CoupledRun`).
+
+    Attributes
+    ----------
+    index : int
+        1 for the first iteration of the step.
+    network : NetworkState
+        The network (and interface) the drainage ran on in this iteration.
+    flow : FlowState
+        The drainage state at the end of the step.
+    pressures : dict
+        ``{time: (Np,) Pa}``: pore pressures the drainage gave at the solid's load times (before
+        any ``load_map``).
+    displacement : ndarray, shape (Nn, 3)
+        The solid's answer to them, m.
+    relaxed : ndarray, shape (Nn, 3)
+        The iterate handed to the network update (``displacement`` without sub-iterations), m.
+    residual : float or None
+        ``|U1 - U_k| / |U1|`` of this sub-iteration (None without sub-iterations).
+    omega : float or None
+        The relaxation factor used (None without sub-iterations).
+    """
+
+    index: int
+    network: object
+    flow: FlowState
+    pressures: dict
+    displacement: np.ndarray
+    relaxed: np.ndarray
+    residual: float | None = None
+    omega: float | None = None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
