@@ -148,11 +148,17 @@ def test_boundary_conduit_floor_and_shared_definition():
     h_lo, h_hi = boundary_resistance(moved, "x")
     np.testing.assert_allclose(h_lo, 8 * m_lo / (np.pi * R0**4), rtol=1e-14)
     np.testing.assert_allclose(h_hi, 8 * m_hi / (np.pi * R0**4), rtol=1e-14)
-    # The drainage graph's boundary edges use the same lengths (one definition for both flow models).
+    # The drainage graph's boundary edges are these conduits (one definition for both flow models).
+    from porefsi.flow.fluids import Fluids
+
+    fl = Fluids()
     for ax in range(3):
-        for mine, theirs in zip(boundary_conduit_lengths(moved, ax), _drainage_graph.boundary_lengths(moved, ax),
-                                strict=True):
-            np.testing.assert_array_equal(mine, theirs)
+        g = _drainage_graph.build_graph(moved, fl, ax)
+        lo, hi = boundary_resistance(moved, ax)
+        inl, out = g.is_in_edge, (g.throat < 0) & ~g.is_in_edge
+        assert inl.any() and out.any()
+        np.testing.assert_array_equal(g.gw[inl], 1.0 / (fl.mu_w * lo[g.keep[g.b[inl]]]))
+        np.testing.assert_array_equal(g.gw[out], 1.0 / (fl.mu_w * hi[g.keep[g.a[out]]]))
 
 
 def test_floored_inlet_conduit_enters_the_closed_form():

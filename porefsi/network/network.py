@@ -270,6 +270,32 @@ class Network:
                 "choose another --axis or a larger image"
             )
 
+    def spanning_clusters(self, axis: str | int) -> tuple[np.ndarray, int, int]:
+        """The pores of the connected clusters that touch both faces of ``axis``.
+
+        The one spanning-cluster search of porefsi (single-phase permeability, drainage).
+
+        Returns
+        -------
+        mask : ndarray of bool, shape (Np,)
+            Pores of a spanning cluster.
+        n_clusters, n_spanning : int
+            Connected clusters of pores (throats as edges), and those touching both faces.
+        """
+        from scipy import sparse
+        from scipy.sparse import csgraph
+
+        ax = axis_index(axis)
+        n_p, conns = self.n_pores, self.throat_conns
+        adj = sparse.coo_array((np.ones(self.n_throats), (conns[:, 0], conns[:, 1])), shape=(n_p, n_p))
+        n_comp, comp = csgraph.connected_components(adj, directed=False)
+        has_in = np.zeros(n_comp, bool)
+        has_out = np.zeros(n_comp, bool)
+        has_in[comp[self.inlet(ax)]] = True
+        has_out[comp[self.outlet(ax)]] = True
+        spanning = has_in & has_out
+        return spanning[comp], int(n_comp), int(spanning.sum())
+
     def replace(self, **changes) -> Network:
         """Return a copy with fields replaced (validated again)."""
         return dataclasses.replace(self, **changes)
