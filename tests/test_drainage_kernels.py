@@ -81,3 +81,33 @@ def test_dijkstra_and_path_check_match_twin(rng):
             blocked = usable.copy()
             blocked[x] = False
             assert not kern._path_usable(x, pred, blocked, n)
+
+
+def test_non_wetting_distances_match_twin_and_the_incremental_update(rng):
+    # d_N bounds the cluster's resistance from the inlet (Rayleigh): Dijkstra over full pores from
+    # the inlet node; adding a pore updates the distances to what a fresh computation gives
+    g = _graph(rng, (7, 6, 4))
+    n = g.n
+    nres = 1.0 / g.gn[g.nbr_edge]
+    in_res = np.full(n, np.inf)
+    ie = np.flatnonzero(g.is_in_edge)
+    in_res[g.b[ie]] = 1.0 / g.gn[ie]
+    for _ in range(4):
+        full = rng.random(n) < 0.5
+        dist = kern._n_distance(g.indptr, g.nbr, nres, full, in_res)
+        np.testing.assert_allclose(dist, ref.n_distance(g.indptr, g.nbr, nres, full, in_res), rtol=1e-12)
+        assert np.isfinite(dist).any() and np.isinf(dist[~full]).all()
+        for x in rng.permutation(np.flatnonzero(~full))[:15]:
+            full[x] = True
+            kern._n_distance_add(int(x), dist, g.indptr, g.nbr, nres, full, in_res)
+            np.testing.assert_allclose(dist, ref.n_distance(g.indptr, g.nbr, nres, full, in_res), rtol=1e-12)
+
+
+def test_ball_matches_twin(rng):
+    g = _graph(rng, (7, 6, 4))
+    for hops in (0, 1, 2, 5):
+        allowed = rng.random(g.n) < 0.7
+        seeds = rng.choice(g.n, 4, replace=False)
+        got = kern._ball(seeds, g.indptr, g.nbr, allowed, hops)
+        np.testing.assert_array_equal(got, ref.ball(seeds, g.indptr, g.nbr, allowed, hops))
+        assert got.sum() >= np.count_nonzero(allowed[seeds])

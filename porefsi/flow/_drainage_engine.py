@@ -100,9 +100,24 @@ class Engine:
 
     def solve(self):
         """Solve the pressure field of the current configuration; return (cond, men, fa)."""
+        cond, men, fa = self.conductances()
+        A, rhs, x = self.assemble(cond, men, fa)
+        old = self.P
+        nmask = np.concatenate([self.full, [True]]) if self.solver.method == "split" else None
+        P = self.solver.solve(A, rhs, x0=old, hint=lambda: self._hint(x), nmask=nmask)
+        P[:self.g.n][self.trapped] = old[:self.g.n][self.trapped]
+        self.P = P
+        self.p_valid = True
+        return cond, men, fa
+
+    def assemble(self, cond, men, fa):
+        """Pressure matrix (CSR, the graph's fixed pattern), right-hand side and the active menisci's pores.
+
+        Rows of nodes without a conducting edge are ``d x = 0`` with ``d`` the node's all-wetting
+        diagonal (see :meth:`solve`).
+        """
         g = self.g
         n = g.n
-        cond, men, fa = self.conductances()
         diag = (np.bincount(g.a, cond, minlength=n + 2) + np.bincount(g.b, cond, minlength=n + 2))[:n + 1]
         rhs = np.zeros(n + 1)
         off = np.where(g.inner, -cond, 0.0)
@@ -133,12 +148,7 @@ class Engine:
         data[g.pos_ab[g.inner]] = off[g.inner]
         data[g.pos_ba[g.inner]] = off[g.inner]
         A = sp.csr_array((data, g.indices, g.pattern_indptr), shape=(n + 1, n + 1))
-        old = self.P
-        P = self.solver.solve(A, rhs, x0=old, hint=lambda: self._hint(x))
-        P[:n][self.trapped] = old[:n][self.trapped]
-        self.P = P
-        self.p_valid = True
-        return cond, men, fa
+        return A, rhs, x
 
     def _hint(self, targets, n_pinned: int = 2):
         """Rows likely to change soon, for the solver to prefetch (cost only, never the answer).

@@ -55,13 +55,16 @@ from porefsi.errors import ConvergenceError, InputError
 
 __all__ = ["PressureSolver"]
 
-_METHODS = ("auto", "lowrank", "direct", "amg", "jacobi")
+_METHODS = ("auto", "lowrank", "direct", "amg", "jacobi", "split")
 
 
 #: Consecutive failed low-rank updates after which the solver factorises directly, and for how
 #: many solves (then it tries the low-rank path again).
 _FAIL_STREAK = 8
 _DIRECT_SOLVES = 64
+#: Split solves rebuild their wetting hierarchy once CG needs this many times the iterations
+#: of the first solve after the build (the cluster's growth cuts the wetting block).
+_SPLIT_STALE = 1.5
 #: Right-hand-side nonzeros without a cached column above which ``A0^-1 b`` is one base solve.
 _MAX_RHS_COLUMNS = 16
 
@@ -110,12 +113,16 @@ class PressureSolver:
         self._saved_base = None  # the low-rank base of an unpickled solver, rebuilt at the next solve
         self._fail_streak = 0  # consecutive low-rank updates that missed the residual target
         self._direct_left = 0  # solves left to factorise directly after such a streak
+        self._amg_data = None  # values of the (scaled) matrix the AMG hierarchy was built from
+        self._amg_ref = None  # CG iterations of the first solve after the build (rebuild at twice)
 
     def __setstate__(self, d):  # solvers pickled before the prefetch counters existed
         d.setdefault("prefetch", True)
         d.setdefault("_fail_streak", 0)
         d.setdefault("_direct_left", 0)
         d.setdefault("_saved_base", None)
+        d.setdefault("_amg_data", None)
+        d.setdefault("_amg_ref", None)
         for k in ("n_columns", "n_column_batches", "n_prefetched"):
             d.setdefault(k, 0)
         self.__dict__.update(d)
@@ -150,14 +157,15 @@ class PressureSolver:
         base["n_pref"] = saved["n_pref"]
 
     def solve(self, A: sp.csr_array, b: np.ndarray, x0: np.ndarray | None = None,
-              hint: np.ndarray | None = None) -> np.ndarray:
+              hint: np.ndarray | None = None, nmask: np.ndarray | None = None) -> np.ndarray:
         """Return x with ``A x = b`` (A symmetric positive definite, CSR with a fixed pattern).
 
         ``hint`` (a callable returning node indices, called only when a batch of base columns is
         computed anyway) names rows likely to change soon; the low-rank solver computes
         their base columns in the same batched triangular solve as the columns it needs now
         (a batch of k right-hand sides costs far less than k single solves). Hints change the
-        cost only, never the answer.
+        cost only, never the answer. ``nmask`` (method ``'split'``, required there) marks the
+        non-wetting rows, eliminated directly (:mod:`porefsi.flow._drainage_schur`).
         """
         self.n_solves += 1
         if self.method == "lowrank":
@@ -177,16 +185,19 @@ class PressureSolver:
                 y = y + lu.solve(r)
             return y * s
         y0 = np.zeros_like(b) if x0 is None else np.nan_to_num(x0 / s)
+        if self.method == "split":
+            return self._solve_split(As, bs, y0, nmask) * s
         if self.method == "amg":
             if self._ml is None:
                 self._setup_amg(As)
             y, hist = _pcg(As, bs, y0, self._ml, self.rtol, self.maxiter)
             it = len(hist) - 1
-            if self._ml_iters is None:
-                self._ml_iters = max(it, 4)
-            elif it > 2 * self._ml_iters:  # the hierarchy went stale: rebuild for next time
+            if self._amg_ref is None:
+                self._amg_ref = max(it, 4)
+            elif it > 2 * self._amg_ref:  # the hierarchy went stale: rebuild for next time
                 self._ml = None
-                self._ml_iters = None
+                self._amg_data = None
+                self._amg_ref = None
         else:
             y, hist = _pcg(As, bs, y0, None, self.rtol, self.maxiter)
         self.iterations += len(hist) - 1
@@ -336,11 +347,42 @@ class PressureSolver:
             fresh = True
         return self._base["lu"].solve(b * self._base["s"]) * self._base["s"]
 
+    def _solve_split(self, As, bs, y0, nmask):
+        """Non-wetting block direct, wetting block CG with a reused hierarchy (rebuilt when stale)."""
+        from porefsi.flow import _drainage_schur as schur
+
+        wm = ~nmask & schur.coupled_rows(As)
+        if self._ml is None:
+            self._setup_amg(schur.wetting_block(As, wm))
+        y, it = schur.split_solve(As, bs, y0, nmask, self._ml, self.rtol, self.maxiter)
+        self.iterations += it
+        if self._amg_ref is None:
+            self._amg_ref = max(it, 4)
+        elif it > _SPLIT_STALE * self._amg_ref:  # the hierarchy went stale: rebuild for next time
+            self._ml = None
+            self._amg_data = None
+            self._amg_ref = None
+        return y
+
     def _setup_amg(self, As):
+        """Build the smoothed-aggregation hierarchy of ``As``, or of the matrix it was built from.
+
+        The hierarchy's recipe (the values of the matrix it was built from, ``_amg_data``) is kept,
+        so a solver restored from a checkpoint rebuilds the very same hierarchy; pyamg's spectral
+        radius estimate starts from a random vector, drawn here from a fixed seed.
+        """
         import pyamg
 
-        self.n_setups += 1
-        self._ml = pyamg.smoothed_aggregation_solver(As, max_coarse=500)
+        if self._amg_data is None:
+            self._amg_data = As.data.copy()
+            self.n_setups += 1
+        A0 = sp.csr_array((self._amg_data, As.indices, As.indptr), shape=As.shape)
+        state = np.random.get_state()
+        np.random.seed(0)
+        try:
+            self._ml = pyamg.smoothed_aggregation_solver(A0, max_coarse=500)
+        finally:
+            np.random.set_state(state)
 
 
 def _solve_columns(base, nodes):

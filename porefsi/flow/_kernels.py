@@ -208,3 +208,101 @@ def _path_usable(x, pred, usable, max_len):
             return False
         v = pred[v]
     return False
+
+
+@jit
+def _n_distance(indptr, nbr, nbr_res, full, in_res):
+    """Shortest non-wetting path resistance from the virtual inlet node to every full pore.
+
+    Dijkstra over full pores only; ``nbr_res[p]`` is the non-wetting resistance of adjacency
+    entry ``p`` and ``in_res[v]`` that of the inlet conduit into pore ``v`` (``inf`` when v is
+    not an inlet pore). Returns ``dist`` (n,), ``inf`` for pores that are not full or not joined
+    to the inlet through full pores. By Rayleigh's monotonicity law each value bounds the
+    effective resistance of the full cluster between the inlet and the pore from above.
+    """
+    n = indptr.shape[0] - 1
+    dist = np.full(n, _INF)
+    heap = [(0.0, np.int64(0))]
+    heap.pop()
+    for v in range(n):
+        if full[v] and in_res[v] < _INF:
+            dist[v] = in_res[v]
+            heapq.heappush(heap, (dist[v], np.int64(v)))
+    while len(heap) > 0:
+        dv, v = heapq.heappop(heap)
+        if dv > dist[v]:
+            continue
+        for p in range(indptr[v], indptr[v + 1]):
+            w = nbr[p]
+            if not full[w]:
+                continue
+            nd = dv + nbr_res[p]
+            if nd < dist[w]:
+                dist[w] = nd
+                heapq.heappush(heap, (nd, np.int64(w)))
+    return dist
+
+
+@jit
+def _n_distance_add(x, dist, indptr, nbr, nbr_res, full, in_res):
+    """Update :func:`_n_distance`'s ``dist`` in place after pore ``x`` became full (``full[x]`` set).
+
+    Adding a pore to the full cluster only shortens paths, so the update is a Dijkstra from
+    ``x`` over the distances that decrease. Returns the number of pores whose distance changed.
+    """
+    d = in_res[x]
+    for p in range(indptr[x], indptr[x + 1]):
+        w = nbr[p]
+        if full[w] and w != x:
+            c = dist[w] + nbr_res[p]
+            if c < d:
+                d = c
+    if not d < dist[x]:
+        return 0
+    dist[x] = d
+    n_changed = 1
+    heap = [(d, np.int64(x))]
+    while len(heap) > 0:
+        dv, v = heapq.heappop(heap)
+        if dv > dist[v]:
+            continue
+        for p in range(indptr[v], indptr[v + 1]):
+            w = nbr[p]
+            if not full[w]:
+                continue
+            nd = dv + nbr_res[p]
+            if nd < dist[w]:
+                dist[w] = nd
+                n_changed += 1
+                heapq.heappush(heap, (nd, np.int64(w)))
+    return n_changed
+
+
+@jit
+def _ball(seeds, indptr, nbr, allowed, hops):
+    """Mask (n,) of the ``allowed`` pores within ``hops`` adjacency steps of an allowed seed.
+
+    Breadth-first search from the allowed ``seeds`` that only walks through allowed pores.
+    """
+    n = indptr.shape[0] - 1
+    depth = np.full(n, -1, dtype=np.int64)
+    queue = np.empty(n, dtype=np.int64)
+    head = 0
+    tail = 0
+    for s in seeds:
+        if s < n and allowed[s] and depth[s] < 0:
+            depth[s] = 0
+            queue[tail] = s
+            tail += 1
+    while head < tail:
+        v = queue[head]
+        head += 1
+        if depth[v] >= hops:
+            continue
+        for p in range(indptr[v], indptr[v + 1]):
+            w = nbr[p]
+            if allowed[w] and depth[w] < 0:
+                depth[w] = depth[v] + 1
+                queue[tail] = w
+                tail += 1
+    return depth >= 0

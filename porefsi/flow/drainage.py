@@ -43,7 +43,7 @@ from porefsi.image.voxel_image import axis_index
 from porefsi.network.network import Network
 
 __all__ = ["DrainageSimulator", "DrainageResult", "simulate_drainage", "PAPER_RATE", "PAPER_T_END",
-           "HISTORY_COLUMNS", "OUTLET_PRESSURE"]
+           "HISTORY_COLUMNS", "OUTLET_PRESSURE", "SCHEMES"]
 
 #: The paper's injection rate, m³/s, and injection time, s.
 PAPER_RATE = 1.25e-13
@@ -61,6 +61,21 @@ _ROW_COLUMNS = ("time_s", "injected_m3", "sw", "inlet_pressure_pa", "w_outflow_m
 #: ``capillary_pressure_pa`` = inlet minus outlet node pressure (:data:`OUTLET_PRESSURE`).
 HISTORY_COLUMNS = ("time_s", "injected_m3", "sw", "inlet_pressure_pa", "capillary_pressure_pa", "w_outflow_m3_s",
                    "nw_outflow_m3_s", "n_events", "n_solves", "mass_balance_error", "n_full")
+
+
+#: Drainage schemes: ``'exact'`` (a pressure solve after every event, the reference) and
+#: ``'adaptive'`` (certified quasi-static batches without solves, dynamic events elsewhere).
+SCHEMES = ("exact", "adaptive")
+
+
+def _make_engine(graph, rate, inlet_pressure, opts: dict) -> Engine:
+    """The event engine of the scheme named in ``opts`` (checkpoints older than schemes: exact)."""
+    o = dict(opts)
+    if o.pop("scheme", "exact") == "adaptive":
+        from porefsi.flow._drainage_adaptive import AdaptiveEngine
+
+        return AdaptiveEngine(graph, rate, inlet_pressure, **o)
+    return Engine(graph, rate, inlet_pressure, **o)
 
 
 def _positive(name, v, unit):
@@ -124,7 +139,8 @@ class DrainageSimulator:
 
     def __init__(self, net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: float = PAPER_RATE,
                  inlet_pressure: float | None = None, axis="x", solver: str = "auto",
-                 skip_solves: bool | str = "auto", max_active_set_iter: int | None = None, _keep=None):
+                 skip_solves: bool | str = "auto", max_active_set_iter: int | None = None, scheme: str = "exact",
+                 _keep=None):
         if not isinstance(net, Network):
             raise InputError(f"net must be a porefsi Network, got {type(net).__name__}")
         if not isinstance(fluids, Fluids):
@@ -144,8 +160,13 @@ class DrainageSimulator:
         self.graph = build_graph(net, fluids, self.axis, keep=_keep)
         if skip_solves == "auto":
             skip_solves = self.graph.n > 5000
-        self._opts = dict(solver=solver, skip_solves=bool(skip_solves), max_active_set_iter=max_active_set_iter)
-        self._engine = Engine(self.graph, self.rate, self.inlet_pressure_bc, **self._opts)
+        if scheme not in SCHEMES:
+            raise InputError(f"unknown drainage scheme {scheme!r}; choose one of {', '.join(map(repr, SCHEMES))} "
+                             "('exact': a pressure solve after every event; 'adaptive': certified quasi-static "
+                             "batches, see docs/drainage.md)")
+        self._opts = dict(solver=solver, skip_solves=bool(skip_solves), max_active_set_iter=max_active_set_iter,
+                          scheme=scheme)
+        self._engine = _make_engine(self.graph, self.rate, self.inlet_pressure_bc, self._opts)
 
     # -- sizes and counters ----------------------------------------------------------------
     @property
@@ -231,7 +252,7 @@ class DrainageSimulator:
         new.rate, new.inlet_pressure_bc, new._opts = self.rate, self.inlet_pressure_bc, self._opts
         new.graph = build_graph(net, self.fluids, self.axis, keep=self.graph.keep)
         e0 = self._engine
-        e = Engine(new.graph, self.rate, self.inlet_pressure_bc, **self._opts)
+        e = _make_engine(new.graph, self.rate, self.inlet_pressure_bc, self._opts)
         for name in ("full", "trapped", "inv", "closed", "parent", "P", "fill_time", "edge_time"):
             setattr(e, name, getattr(e0, name).copy())
         for name in ("t", "injected", "out_n", "out_w", "t_breakthrough", "sw_breakthrough", "n_events",
@@ -251,6 +272,8 @@ class DrainageSimulator:
             g = new.graph
             u = g.a[pe] if g.b[pe] == x else g.b[pe]
             e.tree_res[x] = e.tree_res[u] + 1.0 / g.gn[pe]
+        if hasattr(e, "dn_full"):  # adaptive: non-wetting distances from the new conductances
+            e.dn_full = -1
         new._engine = e
         return new
 
@@ -308,7 +331,7 @@ class DrainageSimulator:
         new.net, new.fluids, new.axis = net, self.fluids, self.axis
         new.rate, new.inlet_pressure_bc, new._opts = self.rate, self.inlet_pressure_bc, self._opts
         new.graph = g = build_graph(net, self.fluids, self.axis)
-        e = Engine(g, self.rate, self.inlet_pressure_bc, **self._opts)
+        e = _make_engine(g, self.rate, self.inlet_pressure_bc, self._opts)
         arr = engine_arrays_from_saturation(g, sat[g.keep], full_tol=full_tol)
         for name in ("vn", "full", "trapped", "inv", "parent", "tree_res"):
             setattr(e, name, arr[name])

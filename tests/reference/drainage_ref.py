@@ -69,3 +69,44 @@ def dijkstra_to_outlet(indptr, nbr, nbr_res, usable, out_res):
     A = sp.coo_array((w[ok], (src[ok], dst[ok])), shape=(n + 1, n + 1)).tocsr()
     d = dijkstra(A, directed=False, indices=n)
     return d[:n]
+
+
+def n_distance(indptr, nbr, nbr_res, full, in_res):
+    """Shortest path from a virtual inlet node over full pores (scipy Dijkstra on an explicit graph)."""
+    n = len(indptr) - 1
+    edges = {}
+    for v in range(n):
+        for p in range(indptr[v], indptr[v + 1]):
+            w = int(nbr[p])
+            if full[v] and full[w]:
+                key = (min(v, w), max(v, w))
+                edges[key] = min(edges.get(key, np.inf), float(nbr_res[p]))
+    for v in range(n):
+        if full[v] and np.isfinite(in_res[v]):
+            edges[(v, n)] = float(in_res[v])
+    if not edges:
+        return np.full(n, np.inf)
+    a = [k[0] for k in edges]
+    b = [k[1] for k in edges]
+    A = sp.coo_array((list(edges.values()), (a, b)), shape=(n + 1, n + 1)).tocsr()
+    d = dijkstra(A, directed=False, indices=n)[:n]
+    return np.where(full, d, np.inf)
+
+
+def ball(seeds, indptr, nbr, allowed, hops):
+    """Allowed pores within ``hops`` steps of an allowed seed through allowed pores (plain BFS, lists)."""
+    n = len(indptr) - 1
+    frontier = {int(s) for s in seeds if s < n and allowed[s]}
+    seen = set(frontier)
+    for _ in range(hops):
+        nxt = set()
+        for v in frontier:
+            for p in range(indptr[v], indptr[v + 1]):
+                w = int(nbr[p])
+                if allowed[w] and w not in seen:
+                    nxt.add(w)
+        seen |= nxt
+        frontier = nxt
+    out = np.zeros(n, dtype=bool)
+    out[list(seen)] = True
+    return out
