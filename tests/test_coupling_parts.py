@@ -117,3 +117,54 @@ def test_transfer_loads_draws_outputs_on_the_vertices():
     np.testing.assert_array_equal(loads.output, np.full((4, 3), 2.0))
     with pytest.raises(Exception, match="pressure must have shape"):
         itf.nodal_forces(np.zeros(2))
+
+
+def test_carry_state_remaps_by_voxel_overlap():
+    """A new topology: each new pore's saturation is the voxel-weighted mean of the old pores its
+    voxels belonged to, its fill time the earliest of theirs (plain arrays handed to ``remap``)."""
+    from types import SimpleNamespace
+
+    from porefsi.coupling import carry_state
+
+    old_net = SimpleNamespace(n_pores=2, throat_conns=np.array([[0, 1]]), pore_faces=np.zeros((2, 6), bool))
+    new_net = SimpleNamespace(n_pores=2, throat_conns=np.zeros((0, 2), int), pore_faces=np.zeros((2, 6), bool))
+    got = {}
+
+    class Sim:
+        net = old_net
+        state = SimpleNamespace(nw_saturation=np.array([1.0, 0.2]))
+
+        def invasion_time(self):
+            return np.array([2.0, np.nan])
+
+        def remap(self, net, sat, invasion_time=None):
+            got.update(net=net, sat=sat, time=invasion_time)
+            return "remapped"
+
+    labels_old = np.array([0, 0, 0, 1, 1, -1])
+    labels_new = np.array([0, 1, 1, 1, 1, -1])  # new pore 1: two voxels of old pore 0, two of old pore 1
+    assert carry_state(Sim(), new_net, labels_old, labels_new) == "remapped" and got["net"] is new_net
+    np.testing.assert_allclose(got["sat"], [1.0, (2 * 1.0 + 2 * 0.2) / 4], rtol=1e-15)
+    np.testing.assert_array_equal(got["time"], [2.0, 2.0])
+    new_only = np.array([-1, -1, -1, -1, -1, 0])  # a new pore in old solid: empty, never filled
+    carry_state(Sim(), new_net, labels_old, new_only)
+    assert got["sat"][0] == 0.0 and np.isnan(got["time"][0])
+
+
+def test_geometric_update_always_maps_the_reference_network():
+    """No drift: the network of a total displacement U does not depend on the network it starts
+    from, and a uniform dilation scales every pore volume by det F."""
+    import porefsi
+    from porefsi.coupling import GeometricUpdate, NetworkState
+    from porefsi.image import sphere_lattice
+
+    image = sphere_lattice(n=(3, 2, 2), spacing=12, pore_radius=5, throat_radius=2, voxel_size=5e-6).image
+    p = porefsi.build_problem(image, porefsi.CoupledOptions(solid=porefsi.SolidOptions(coarsen=3)))
+    upd = GeometricUpdate(p.network, p.mesh.points, p.node_spacing)
+    start = NetworkState(p.network, p.interface, p.extraction.labels)
+    e = 1e-3
+    U = e * (p.mesh.points - p.mesh.points.mean(axis=0))  # uniform dilation, F = (1 + e) I
+    once = upd.update(U, start)
+    twice = upd.update(U, once)
+    np.testing.assert_array_equal(twice.network.pore_volume, once.network.pore_volume)
+    np.testing.assert_allclose(once.network.pore_volume, p.network.pore_volume * (1 + e) ** 3, rtol=1e-9)
