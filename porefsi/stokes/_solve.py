@@ -18,6 +18,7 @@ blocks symmetric positive definite (MINRES needs that):
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 
 import numpy as np
@@ -32,6 +33,9 @@ __all__ = ["SolveInfo", "solve", "schur_approximation", "N_VECTORS"]
 #: Full-length vectors :func:`minres` keeps (x, two Lanczos vectors and the new one in place of the
 #: oldest, two preconditioned ones, two search directions).
 N_VECTORS = 7
+
+#: Progress of long solves (set-up time, every 25th iteration): ``logging`` at INFO level.
+log = logging.getLogger(__name__)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -103,6 +107,7 @@ def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000, p
         out[n_u:] = prec_s.matvec(v[n_u:])
 
     t1 = time.perf_counter()
+    log.info("set-up %.1f s: %d velocity + %d pressure unknowns, ~%.2f GiB", t1 - t0, n_u, system.n_p, mem / 2**30)
     x, its, ok, hist = minres(tables, n_u, precvec, _rhs(system), rtol=rtol, maxiter=maxiter)
     t2 = time.perf_counter()
     r = np.empty_like(x)
@@ -160,6 +165,8 @@ def minres(tables, n_u, precvec, b, *, rtol, maxiter):
         kern.axpy(x, c_new * eta, w)
         eta = -s_new * eta
         hist.append(abs(eta) / gamma0)
+        if it % 25 == 0:
+            log.info("MINRES iteration %d: relative preconditioned residual %.3e", it, hist[-1])
         if hist[-1] < rtol or gamma_new == 0.0:
             return x, it, True, hist
         z, z_new = z_new, z
