@@ -202,13 +202,32 @@ class AMGSolverFactory:
         self._pad = np.zeros(self.n_full)
 
     def _padded(self, A: sp.spmatrix) -> sp.bsr_matrix:
-        A = sp.coo_matrix(A)
-        cons = np.setdiff1d(np.arange(self.n_full), self.free)
-        rows = np.concatenate([self.free[A.row], cons])
-        cols = np.concatenate([self.free[A.col], cons])
-        diag = A.diagonal().mean() if A.nnz else 1.0
-        vals = np.concatenate([A.data, np.full(len(cons), diag)])
-        Af = sp.csr_matrix((vals, (rows, cols)), shape=(self.n_full, self.n_full))
+        """The full-size BSR matrix: ``A`` on the free rows and columns, the mean diagonal at the constrained.
+
+        Built row by row in CSR order (``free`` is sorted, so each free row keeps its sorted
+        columns): about two copies of ``A`` at the peak, where a COO detour would take five.
+        """
+        A = sp.csr_matrix(A)
+        A.sort_indices()
+        n_full, free = self.n_full, self.free
+        cons = np.setdiff1d(np.arange(n_full), free)
+        row_len = np.diff(A.indptr)
+        counts = np.ones(n_full, dtype=np.int64)
+        counts[free] = row_len
+        indptr = np.zeros(n_full + 1, dtype=np.int64)
+        np.cumsum(counts, out=indptr[1:])
+        idx_t = np.int32 if n_full < 2**31 and indptr[-1] < 2**31 else np.int64
+        data = np.empty(indptr[-1])
+        indices = np.empty(indptr[-1], dtype=idx_t)
+        dest = np.repeat(indptr[free] - A.indptr[:-1], row_len)
+        dest += np.arange(A.nnz, dtype=np.int64)
+        data[dest] = A.data
+        indices[dest] = free[A.indices]
+        del dest
+        data[indptr[cons]] = A.diagonal().mean() if A.nnz else 1.0
+        indices[indptr[cons]] = cons
+        Af = sp.csr_matrix((data, indices, indptr.astype(idx_t)), shape=(n_full, n_full))
+        Af.has_sorted_indices = True
         return Af.tobsr(blocksize=(3, 3))
 
     def setup(self, A: sp.spmatrix) -> None:
