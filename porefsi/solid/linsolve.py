@@ -1,7 +1,9 @@
 """Linear solvers for the (condensed, SPD) elasticity systems: AMG-CG, Jacobi-CG, direct.
 
 Each factory ``make(A) -> solve(b) -> x`` follows
-:data:`porefsi.integrators.system.SolverFactory`. Unconverged solves raise
+:data:`porefsi.integrators.system.SolverFactory`; ``solve(b, rtol=...)`` overrides an iterative
+solve's relative tolerance for one call (an inexact Newton step asks only for what it needs; a
+direct solve ignores it). Unconverged solves raise
 :class:`~porefsi.errors.ConvergenceError` carrying the residual history.
 """
 
@@ -268,11 +270,12 @@ class AMGSolverFactory:
         if self.ml is None:
             self.setup(A)
 
-        def solve(b: np.ndarray) -> np.ndarray:
+        def solve(b: np.ndarray, rtol: float | None = None) -> np.ndarray:
             # a reused hierarchy gets at most rebuild_iterations before it is replaced
             cap = self.maxiter if state["fresh"] else self.rebuild_iterations
+            tol = self.rtol if rtol is None else float(rtol)
             try:
-                x, info = pcg(A, b, self.precondition, rtol=self.rtol, maxiter=cap, what="AMG-CG")
+                x, info = pcg(A, b, self.precondition, rtol=tol, maxiter=cap, what="AMG-CG")
                 ok = True
             except IndefiniteMatrixError:
                 raise  # a property of A: no hierarchy can help
@@ -283,7 +286,7 @@ class AMGSolverFactory:
             if not ok:  # stale hierarchy: rebuild for this matrix and solve again
                 self.setup(A)
                 state["fresh"] = True
-                x, info = pcg(A, b, self.precondition, rtol=self.rtol, maxiter=self.maxiter, what="AMG-CG")
+                x, info = pcg(A, b, self.precondition, rtol=tol, maxiter=self.maxiter, what="AMG-CG")
             self.last = info
             return x
 
@@ -296,6 +299,7 @@ class AMGSolverFactory:
 
 def jacobi_solver_factory(rtol: float = 1e-8, maxiter: int | None = None):
     """Factory of Jacobi-preconditioned CG solves (cheap setup; fine at small size)."""
+    default_rtol = rtol
 
     def make(A):
         A = sp.csr_matrix(A)
@@ -303,7 +307,11 @@ def jacobi_solver_factory(rtol: float = 1e-8, maxiter: int | None = None):
         if np.any(d <= 0):
             raise InputError("Jacobi-CG needs a positive diagonal; the matrix is not SPD")
         inv = 1.0 / d
-        return lambda b: pcg(A, b, lambda r: inv * r, rtol=rtol, maxiter=maxiter, what="Jacobi-CG")[0]
+        def solve(b, rtol: float | None = None):
+            tol = default_rtol if rtol is None else float(rtol)
+            return pcg(A, b, lambda r: inv * r, rtol=tol, maxiter=maxiter, what="Jacobi-CG")[0]
+
+        return solve
 
     return make
 
@@ -327,7 +335,7 @@ def direct_solver_factory(symmetric: bool = True):
             else:
                 lu = spla.splu(A)
 
-        def solve(b):
+        def solve(b, rtol: float | None = None):  # exact: a tolerance has nothing to loosen
             with single_thread_blas():
                 return lu.solve(np.asarray(b, dtype=float))
 
@@ -386,7 +394,7 @@ class AdaptiveSolverFactory:
         can_factor = A.shape[0] <= self.direct_max_dofs
         state = {"solves": 0, "lu": None, "amg": None}
 
-        def solve(b: np.ndarray) -> np.ndarray:
+        def solve(b: np.ndarray, rtol: float | None = None) -> np.ndarray:
             if state["lu"] is None and can_factor and state["solves"] >= self.factor_after:
                 state["lu"] = direct_solver_factory()(A)
                 self.n_factorizations += 1
@@ -395,7 +403,7 @@ class AdaptiveSolverFactory:
                 return state["lu"](b)
             if state["amg"] is None:
                 state["amg"] = self.amg(A)
-            return state["amg"](b)
+            return state["amg"](b, rtol)
 
         return solve
 
