@@ -12,19 +12,22 @@ Run: ``python benchmarks/bench_coupled_large.py [--sizes 120 200 280 400] [--t-e
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _stages import Stages, cap_memory, process_peak_gib  # noqa: E402
+from _stages import Stages, cap_memory  # noqa: E402
 
 from porefsi.case import Case  # noqa: E402
 from porefsi.case.problem import coupled_options  # noqa: E402
+from porefsi.case.resources import estimate_run  # noqa: E402
 from porefsi.coupling import CoupledRun  # noqa: E402
 from porefsi.coupling.problem import CoupledProblem, build_solid  # noqa: E402
 from porefsi.image import crop, percolating_cluster, read_image  # noqa: E402
@@ -48,6 +51,10 @@ def run(path: str, size: int, t_end: float, solver: str | None, max_steps: int |
     if solver:
         case = case.replace(solid={"linear_solver": solver})
     opts = coupled_options(case)
+    with st("estimate"):
+        est = estimate_run(img, case.solid.coarsen, case.solid.linear_solver)
+    print(f"    -- estimate: {est.describe()}, peak ~{est.peak_bytes / 2**30:.2f} GiB "
+          f"({', '.join(f'{k} {v / 2**30:.2f}' for k, v in est.bytes_by_part.items())} GiB)")
     with st("percolating cluster"):
         perc = percolating_cluster(img, opts.axis).image
     with st("extraction"):
@@ -73,9 +80,12 @@ def run(path: str, size: int, t_end: float, solver: str | None, max_steps: int |
         if max_steps is not None and n >= max_steps:
             break
     wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-    print(f"  total: wall {wall:.1f} s, CPU {cpu:.1f} s, process peak {process_peak_gib():.2f} GiB, "
+    peak = max(r["peak"] for r in st.rows)
+    print(f"  total: wall {wall:.1f} s, CPU {cpu:.1f} s, peak {peak:.2f} GiB (estimated {est.peak_bytes / 2**30:.2f}), "
           f"load {os.getloadavg()[0]:.2f}")
-    return {"size": size, "wall": wall, "cpu": cpu, "peak": process_peak_gib(), "stages": st.rows}
+    return {"size": size, "wall": wall, "cpu": cpu, "peak": peak, "estimated_peak": est.peak_bytes / 2**30,
+            "n_pores": ex.network.n_pores, "n_tets": mres.mesh.n_tets, "n_dofs": model.n_dofs,
+            "linear_solver": model.linear_solver, "stages": st.rows}
 
 
 def main() -> None:
@@ -86,11 +96,15 @@ def main() -> None:
     ap.add_argument("--solver", default=None, help="solid.linear_solver (default: the case default)")
     ap.add_argument("--max-steps", type=int, default=None)
     ap.add_argument("--cap-gib", type=float, default=9.0, help="address-space cap of this process")
+    ap.add_argument("--json", default=None, help="write the per-stage rows of every size to this file")
     args = ap.parse_args()
     cap_memory(args.cap_gib)
+    warnings.simplefilter("ignore", DeprecationWarning)
+    warnings.showwarning = lambda msg, cat, *a, **k: print(f"    -- {cat.__name__}: {msg}")
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())} ({os.cpu_count()} cores)")
-    for s in args.sizes:
-        run(args.image, s, args.t_end, args.solver, args.max_steps)
+    out = [run(args.image, s, args.t_end, args.solver, args.max_steps) for s in args.sizes]
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1))
 
 
 if __name__ == "__main__":

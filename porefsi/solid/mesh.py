@@ -432,8 +432,10 @@ def mesh_size(image: VoxelImage, *, coarsen: int = 1, threshold: float = 0.5) ->
     Floating solid is counted too (:func:`mesh_solid` drops it), so these are upper bounds,
     reached when every solid block is supported. Costs one integer pass over the image.
     """
-    fraction, _ = _coarsen(image.phases == 0, max(1, int(coarsen)))
-    solid = fraction >= float(threshold)
+    c = max(1, int(coarsen))
+    solid = image.phases == 0  # (threshold > 0: a voxel is a block of fraction 0 or 1)
+    if c > 1:
+        solid = _coarsen(solid, c)[0] >= float(threshold)
     pad = np.pad(solid, 1)
     corners = np.zeros(tuple(n + 1 for n in solid.shape), bool)  # a corner is used by any of its 8 blocks
     for a in (0, 1):
