@@ -325,3 +325,39 @@ def test_pore_count_against_porespy_snow2():
     n_snow = len(snow.network["pore.coords"])
     n_mb = extract_network(img).network.n_pores
     assert 0.5 <= n_mb / n_snow <= 0.9
+
+
+def test_extraction_refuses_an_image_larger_than_the_memory_before_allocating(monkeypatch):
+    import porefsi.network.extract as ex
+
+    img = sphere_lattice(n=(2, 1, 1)).image
+    need = ex.memory_needed(img.shape, int(img.phases.sum()))
+    assert need == img.phases.size * 6 + int(img.phases.sum()) * 4
+    monkeypatch.setattr(ex, "available_memory", lambda: need - 1)
+
+    def no_edt(*a, **k):  # the check comes before the first allocation
+        raise AssertionError("distance map computed")
+
+    monkeypatch.setattr(ex, "_distance_map", no_edt)
+    with pytest.raises(InputError, match=r"needs about .* more memory .* crop"):
+        ex.extract_network(img)
+    monkeypatch.setattr(ex, "available_memory", lambda: need)
+    monkeypatch.undo()
+    assert ex.extract_network(img).network.n_pores == 2
+
+
+def test_available_memory_respects_the_address_space_limit():
+    # `ulimit -v` caps what a process can allocate whatever the machine has free; the check
+    # must see it, or a shared machine's limit turns the one-line error into a MemoryError
+    import resource
+    import subprocess
+    import sys
+
+    limit = 3 * 2**30
+
+    def cap():
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+    code = "from porefsi.image._memory import available_memory; print(available_memory())"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, preexec_fn=cap, check=True)
+    assert 0 < int(out.stdout) < limit
