@@ -52,7 +52,7 @@ BALL_TEST_REACH = 1
 #: ball's family without scanning its own ball), so the balls scanned are spaced about this many
 #: radii apart along the medial axis and the hierarchy's work per voxel does not grow with the
 #: pore radius in voxels (see ``_mb_balls._families``).
-BALL_CORE = 0.5
+BALL_CORE = 0.35
 
 
 @dataclasses.dataclass(frozen=True)
