@@ -84,6 +84,9 @@ class DrainageConfig:
     rate: float = _f(1.25e-13, "volumetric injection rate (paper case A)", lo=0.0, lo_open=True,
                      unit="m^3/s")
     t_end: float = _f(20.0, "injection time (paper: 20 s)", lo=0.0, lo_open=True, unit="s")
+    scheme: str = _f("exact", "exact = a pressure solve after every event (the reference); adaptive = quasi-static "
+                     "fills in certified batches, local pressure updates elsewhere (docs/drainage.md)",
+                     choices=("exact", "adaptive"))
 
 
 @dataclasses.dataclass(frozen=True)

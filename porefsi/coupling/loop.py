@@ -182,7 +182,8 @@ class CoupledRun:
         self.network = problem.network
         self.interface: Interface = problem.interface
         self.labels = problem.extraction.labels
-        self.sim = DrainageSimulator(problem.network, problem.fluids, rate=case.drainage.rate, axis=case.image.axis)
+        self.sim = DrainageSimulator(problem.network, problem.fluids, rate=case.drainage.rate, axis=case.image.axis,
+                                     scheme=case.drainage.scheme)
         self.model = problem.model
         self.u = np.zeros(self.model.n_dofs)
         self.v = np.zeros(self.model.n_dofs)
