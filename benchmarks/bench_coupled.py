@@ -25,9 +25,11 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from porefsi.case.config import Case  # noqa: E402
-from porefsi.coupling.loop import CoupledRun  # noqa: E402
-from porefsi.coupling.problem import build_problem  # noqa: E402
+from porefsi.case import (
+    Case,  # noqa: E402
+    problem_from_case,  # noqa: E402
+)
+from porefsi.coupling import CoupledRun  # noqa: E402
 
 PAPER_CPU_MIN = 186.9
 
@@ -35,7 +37,7 @@ PAPER_CPU_MIN = 186.9
 def run(name: str, case: Case, reuse_extractions: bool = True) -> dict:
     t0 = time.perf_counter()
     cpu0 = time.process_time()
-    problem = build_problem(case)
+    problem = problem_from_case(case)
     run = CoupledRun(problem, reuse_extractions=reuse_extractions)
     rows = [rec.row for rec in run.steps()]
     wall = time.perf_counter() - t0

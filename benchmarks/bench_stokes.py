@@ -9,24 +9,28 @@ shared: wall times are noisy, CPU times less so).
 Cases (``--cases``; default ``sample``):
 
 * ``sample``: the built-in 120^3 Berea along x, y, z (target: <= 2 minutes each);
-* ``crops``: the eight 200^3 octants of the 400^3 Berea along x, y, z (target: <= 15 minutes and
-  <= 8 GiB each), and their Cardwell-Parsons combination (below) per axis;
+* ``centre``: the 200^3 centre crop [100:300]^3 of the 400^3 Berea along x, y, z (target: <= 15
+  minutes and <= 8 GiB each);
+* ``full``: the whole 400^3 Berea along x, y, z at its own resolution (~6 GiB and ~25 CPU minutes
+  each here);
+* ``crops``: the eight 200^3 octants of the 400^3 Berea along x, y, z, and their Cardwell-Parsons
+  combination (below) per axis;
 * ``coarse``: the whole 400^3 Berea coarsened 2x and 4x (``porefsi.image.downsample``), x, y, z;
 * ``upsample``: each voxel -> 2^3 on a 60^3 corner of the built-in sample (discretisation check);
+  ``upsample400``: each voxel -> 2^3 on 100^3 crops of the 400^3 Berea;
 * ``buffer``: the built-in sample along x with 0, 1, 2, 4, 8 buffer layers, and periodic + mirror.
 
 The 400^3 Berea (``--image``, default ``../shared/data/berea_icl_400.npz`` next to the checkout or
 its parent) carries a published voxel-scale simulation: kx, ky, kz = 1360, 1304, 1193 mD, mean
-1286 mD (which array axis is the published x is uncertain: compare the three-axis mean). One
-full-resolution solve of it needs about 9-10 GB with this solver (measured scaling), over this
-machine's per-process budget, so it is estimated from its octants: with octant permeabilities
-k_ijk (i along the flow), the Cardwell & Parsons (1945) bounds are
+1286 mD (which array axis is the published x is uncertain: compare the three-axis mean). For
+octants (``crops``, ``octants120``) with permeabilities k_ijk (i along the flow), the Cardwell &
+Parsons (1945) bounds are
 
     lower = mean over the 4 columns of the harmonic mean of their 2 octants in series,
     upper = harmonic mean over the 2 layers of the arithmetic mean of their 4 octants,
 
-and the full sample lies between them (for the octants' own k; cutting adds no-slip walls at the
-cut faces, a bias measured on the 120^3 sample with ``--cases octants120``).
+which bracket the arrangement of the octants' own k; cutting adds no-slip walls at the cut faces
+(on the 120^3 sample the combination is 21-33 % below the whole along x and y: use ``full``).
 
 Usage::
 
@@ -148,6 +152,15 @@ def specs(cases, image):
         elif case == "centre" and image:
             for ax in "xyz":
                 yield {"case": case, "image": str(image), "crop": [[100, 300]] * 3, "axis": ax}
+        elif case == "full" and image:
+            for ax in "xyz":
+                yield {"case": case, "image": str(image), "axis": ax}
+        elif case == "upsample400" and image:
+            for lo in (100, 200, 0):
+                for m in (1, 2):
+                    for ax in "xyz":
+                        yield {"case": case, "image": str(image), "crop": [[lo, lo + 100]] * 3, "upsample": m,
+                               "axis": ax}
         elif case == "coarse" and image:
             for f in (4, 2):
                 for ax in "xyz":
@@ -171,7 +184,8 @@ def main(argv=None) -> int:
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--quick", action="store_true", help="built-in sample along x only")
     ap.add_argument("--cases", nargs="+", default=["sample"],
-                    choices=["sample", "quick", "buffer", "upsample", "octants120", "crops", "centre", "coarse"])
+                    choices=["sample", "quick", "buffer", "upsample", "upsample400", "octants120", "crops", "centre",
+                             "full", "coarse"])
     ap.add_argument("--image", default=None, help="the 400^3 Berea npz (default: ../shared/data/berea_icl_400.npz)")
     ap.add_argument("--out", default=None, help="append one JSON line per solve to this file")
     ap.add_argument("--summarise", default=None, metavar="JSONL", help="only summarise an earlier --out file")
@@ -184,8 +198,8 @@ def main(argv=None) -> int:
         return 0
     image = Path(args.image) if args.image else next((p for p in CANDIDATES if p.exists()), None)
     cases = ["quick"] if args.quick else args.cases
-    if image is None and any(c in ("crops", "coarse", "centre") for c in cases):
-        print("400^3 Berea not found (--image): skipping crops/coarse/centre")
+    if image is None and any(c in ("crops", "coarse", "centre", "full", "upsample400") for c in cases):
+        print("400^3 Berea not found (--image): skipping the cases that need it")
     records = []
     for spec in specs(cases, image):
         rec = run(spec)

@@ -49,7 +49,7 @@ html_theme_options = {"page_width": "1180px", "sidebar_width": "240px"}
 suppress_warnings = ["myst.header"]
 
 #: Pages whose ``>>>`` examples are run at build time (and by tests/test_docs.py).
-DOCTEST_PAGES = ("user_guide.md",)
+DOCTEST_PAGES = ("user_guide.md", "api.md")
 DOCTEST_FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 CLI_MARKER = "<!-- generated: porefsi --help of every subcommand -->"
 CLI_COLUMNS = 100

@@ -21,10 +21,10 @@ from porefsi.errors import (
     PorefsiError,
 )
 
-# Public functions, resolved lazily from the module that defines them.
+# The public API, resolved lazily from the module that defines each name (docs/api.md).
 _LAZY = {
-    "VoxelImage": "porefsi.image",
-    "Network": "porefsi.network",
+    # images
+    "VoxelImage": "porefsi.image.voxel_image",
     "read_image": "porefsi.image.io",
     "write_image": "porefsi.image.io",
     "load_sample": "porefsi.image.io",
@@ -32,8 +32,50 @@ _LAZY = {
     "crop": "porefsi.image.ops",
     "downsample": "porefsi.image.ops",
     "percolating_cluster": "porefsi.image.ops",
+    # networks
+    "Network": "porefsi.network.network",
+    "Extraction": "porefsi.network.extract",
     "extract_network": "porefsi.network.extract",
+    "save_network": "porefsi.network.convert",
+    "load_network": "porefsi.network.convert",
+    # flow
+    "Fluids": "porefsi.flow.fluids",
     "absolute_permeability": "porefsi.flow.permeability",
+    "PermeabilityResult": "porefsi.flow.permeability",
+    "voxel_permeability": "porefsi.stokes.permeability",
+    "StokesResult": "porefsi.stokes.permeability",
+    "simulate_drainage": "porefsi.flow.drainage",
+    "DrainageSimulator": "porefsi.flow.drainage",
+    "DrainageResult": "porefsi.flow.state",
+    "FlowState": "porefsi.flow.state",
+    # solid
+    "mesh_solid": "porefsi.solid.mesh",
+    "make_material": "porefsi.solid.materials",
+    "uniaxial_bcs": "porefsi.solid.bc",
+    "SolidModel": "porefsi.solid.model",
+    "solve_static": "porefsi.solid.static",
+    # coupling
+    "CoupledOptions": "porefsi.coupling.options",
+    "DrainageOptions": "porefsi.coupling.options",
+    "SolidOptions": "porefsi.coupling.options",
+    "NetworkOptions": "porefsi.coupling.options",
+    "CouplingOptions": "porefsi.coupling.options",
+    "HullOptions": "porefsi.coupling.options",
+    "TractionOptions": "porefsi.coupling.options",
+    "CoupledProblem": "porefsi.coupling.problem",
+    "build_problem": "porefsi.coupling.problem",
+    "CoupledRun": "porefsi.coupling.loop",
+    "ExchangeRecord": "porefsi.coupling.records",
+    # cases
+    "Case": "porefsi.case.config",
+    "load_case": "porefsi.case.config",
+    "smoke_case": "porefsi.case.config",
+    "problem_from_case": "porefsi.case.problem",
+    "run_case": "porefsi.case.run",
+    "RunOutput": "porefsi.case.run",
+    "read_pore_steps": "porefsi.io.results",
+    # units
+    "MILLIDARCY": "porefsi.units",
 }
 
 __all__ = [

@@ -6,13 +6,16 @@ so ``import porefsi`` stays cheap and headless machines work (Agg backend, off-s
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_timeseries", "plot_psd", "plot_pc_s", "plot_drainage_pc_s", "render_network", "render_solid"]
+from porefsi.units import MILLIDARCY
+
+__all__ = ["plot_timeseries", "plot_psd", "plot_pc_s", "plot_drainage_pc_s", "render_network", "render_solid", "Style"]
 
 
 def _plt():
@@ -45,7 +48,7 @@ def plot_timeseries(ts: Mapping[str, Sequence[float]], path: str | Path, *, titl
         ("total_pore_force_N", "total pore force (mN)", 1e3),
         ("max_displacement_m", "max displacement (nm)", 1e9),
         ("max_von_mises_Pa", "max von Mises (MPa)", 1e-6),
-        ("permeability_m2", "permeability (mD)", 1.0 / 9.869233e-16),
+        ("permeability_m2", "permeability (mD)", 1.0 / MILLIDARCY),
     ]
     panels = [p for p in panels if p[0] in ts]
     ncol = 2
@@ -170,8 +173,30 @@ def _pv():
     return pv
 
 
-def render_network(coords, radii, conns, values, path: str | Path, *, label: str = "", clim=None,
-                   cmap: str = "coolwarm", window_size=(900, 700), fade_above: float | None = None) -> Path:
+@dataclasses.dataclass(frozen=True)
+class Style:
+    """How a 3-D scene is coloured and framed (the keyword options of the ``render_*`` functions).
+
+    Attributes
+    ----------
+    label : str
+        Name of the coloured quantity (scalar-bar title).
+    cmap : str, optional
+        Matplotlib colour map (each scene has its default).
+    clim : (float, float), optional
+        Colour range (default: the data's).
+    window_size : (int, int)
+        Image size, pixels.
+    """
+
+    label: str = ""
+    cmap: str | None = None
+    clim: tuple | None = None
+    window_size: tuple = (900, 700)
+
+
+def render_network(coords, radii, conns, values, path: str | Path, *, fade_above: float | None = None,
+                   **style) -> Path:
     """Pores as spheres (true radius) and throats as lines, coloured by a per-pore value.
 
     Parameters
@@ -187,7 +212,11 @@ def render_network(coords, radii, conns, values, path: str | Path, *, label: str
     fade_above : float, optional
         Draw pores whose value is above this threshold translucent (e.g. 0.999 for wetting
         saturation), so the few invaded pores of an early drainage stand out in the cloud.
+    **style
+        :class:`Style` options (``label``, ``cmap`` default ``"coolwarm"``, ``clim``, ``window_size``).
     """
+    st = Style(**style)
+    label, cmap, clim = st.label, st.cmap or "coolwarm", st.clim
     pv = _pv()
     c = np.asarray(coords, float) * 1e6
     vals = np.asarray(values, float)
@@ -205,7 +234,7 @@ def render_network(coords, radii, conns, values, path: str | Path, *, label: str
     lines = pv.PolyData(c)
     if conns.size:
         lines.lines = np.hstack([np.full((len(conns), 1), 2), conns]).ravel()
-    p = pv.Plotter(off_screen=True, window_size=window_size)
+    p = pv.Plotter(off_screen=True, window_size=st.window_size)
     p.add_mesh(lines, color="grey", line_width=1)
     if faded.any():
         clim = clim if clim is not None else (float(np.nanmin(vals)), float(np.nanmax(vals)))
@@ -221,8 +250,8 @@ def render_network(coords, radii, conns, values, path: str | Path, *, label: str
     return Path(path)
 
 
-def render_solid(points, tets, values, path: str | Path, *, label: str = "", displacement=None, scale: float = 0.0,
-                 cmap: str = "viridis", clim=None, window_size=(900, 700), cut: str | None = None) -> Path:
+def render_solid(points, tets, values, path: str | Path, *, displacement=None, scale: float = 0.0,
+                 cut: str | None = None, **style) -> Path:
     """Surface of the tetrahedral solid coloured by a nodal value, optionally warped.
 
     Parameters
@@ -238,7 +267,11 @@ def render_solid(points, tets, values, path: str | Path, *, label: str = "", dis
     cut : {'x', 'y', 'z'}, optional
         Remove the half of the sample above the mid-plane normal to this axis, to show the
         interior (box faces are held by the loading frame, so the outside shows little).
+    **style
+        :class:`Style` options (``label``, ``cmap`` default ``"viridis"``, ``clim``, ``window_size``).
     """
+    st = Style(**style)
+    label = st.label
     pv = _pv()
     x = np.asarray(points, float)
     if displacement is not None and scale:
@@ -259,8 +292,8 @@ def render_solid(points, tets, values, path: str | Path, *, label: str = "", dis
         surf = grid.extract_surface(algorithm="dataset_surface")
     except TypeError:  # pyvista < 0.47 has no `algorithm`
         surf = grid.extract_surface()
-    p = pv.Plotter(off_screen=True, window_size=window_size)
-    p.add_mesh(surf, scalars=name, cmap=cmap, clim=clim, scalar_bar_args={"title": label})
+    p = pv.Plotter(off_screen=True, window_size=st.window_size)
+    p.add_mesh(surf, scalars=name, cmap=st.cmap or "viridis", clim=st.clim, scalar_bar_args={"title": label})
     p.show_bounds(xtitle="x (um)", ytitle="y (um)", ztitle="z (um)", font_size=10)
     p.camera_position = "iso"
     p.screenshot(str(path))

@@ -44,9 +44,9 @@ LIST_ERRORS = [
         ({"solid": {"youngs": 1.0}}, r"unknown key solid\.youngs"),
         ({"fluid": {}}, r"unknown section \[fluid\]"),
         ({"solid": {"order": 3}}, r"solid\.order = 3 is not one of"),
-        ({"solid": {"nu": 0.5}}, r"solid\.nu must be <= 0\.4999"),
+        ({"solid": {"nu": 0.5}}, r"solid\.nu must be > -1\.0, < 0\.5"),
         ({"interface": {"n_test_points": 1.5}}, r"interface\.n_test_points must be an integer"),
-        ({"fluids": {"theta_deg": 90}}, r"fluids\.theta_deg must be <="),
+        ({"fluids": {"theta_deg": 90}}, r"fluids\.theta_deg must be >= 0\.0, < 90\.0"),
         ({"drainage": {"rate": 0}}, r"drainage\.rate must be > 0"),
         ({"output": {"figures": "yes"}}, r"output\.figures must be true or false"),
         ({"coupling": {"exchange_dt": 30.0}}, r"exceeds drainage\.t_end"),
@@ -115,3 +115,27 @@ def test_schema_reference_lists_every_key():
         if isinstance(vals, dict):
             for key in vals:
                 assert f"| `{key}` |" in md
+
+
+def test_physical_bounds_are_the_physics_classes():
+    """The case file's bounds of the fluids and the material are those of Fluids and Material (issue 14:
+    they used to be restated, as nu <= 0.4999 and theta <= 89.999): what one accepts the other accepts."""
+    import dataclasses
+
+    from porefsi.flow.fluids import Fluids
+    from porefsi.solid.materials import Material, make_material
+
+    ok = case_from_dict({"solid": {"nu": 0.49995, "E": 1e-3}, "fluids": {"theta_deg": 89.9995}})
+    make_material(ok.solid.material, E=ok.solid.E, nu=ok.solid.nu)  # the physics class takes it too
+    Fluids(**dataclasses.asdict(ok.fluids))
+    for cls, section in ((Material, "solid"), (Fluids, "fluids")):
+        for name, lim in cls.LIMITS.items():
+            for bad in (lim.lo, lim.hi):
+                if bad is None:
+                    continue
+                closed = (bad == lim.lo and not lim.lo_open) or (bad == lim.hi and not lim.hi_open)
+                if closed:
+                    case_from_dict({section: {name: bad}})
+                else:
+                    with pytest.raises(ConfigError, match=rf"{section}\.{name} must be"):
+                        case_from_dict({section: {name: bad}})

@@ -1,17 +1,17 @@
 """The coupled loop and the case runner: smoke run, resume equivalence, linear-regime physics."""
 
 import csv
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 
 from porefsi.case.config import Case, smoke_case
+from porefsi.case.problem import problem_from_case as build_problem
 from porefsi.case.run import run_case
 from porefsi.cli import main
-from porefsi.coupling.interface import Interface
 from porefsi.coupling.loop import TIMESERIES_COLUMNS, CoupledRun
-from porefsi.coupling.problem import build_problem
 from porefsi.errors import ConfigError
 
 SUMMARY_KEYS = ("wall_seconds", "n_pores", "n_throats", "n_nodes", "n_tets", "t_end_s", "final_sw",
@@ -208,7 +208,7 @@ def test_resume_refuses_another_case_or_no_checkpoint(finished, tmp_path):
 def test_no_pressure_no_strain_no_motion():
     run = CoupledRun(build_problem(_small(drainage={"t_end": 2.0})))
     itf = run.interface
-    run.interface = Interface(itf.operator * 0.0, itf.method, itf.wall_area, itf.pore_nodes, itf.n_unloaded, 0.0)
+    run.interface = dataclasses.replace(itf, operator=itf.operator * 0.0)
     for rec in run.steps():
         assert np.all(rec.displacement == 0.0) and rec.row["max_von_mises_Pa"] == 0.0
 
@@ -276,9 +276,10 @@ def test_subiterations_converge_in_weak_coupling():
 def test_failure_mid_run_keeps_checkpoint_and_outputs(tmp_path, monkeypatch):
     """A solver failure at step 2 stops with the typed error; step 1's checkpoint, the time series
     so far and a summary saying what failed stay; --resume then finishes the run."""
+    from porefsi.coupling.solid_step import StaticStepper
     from porefsi.errors import ConvergenceError
 
-    real = CoupledRun._solid_step
+    real = StaticStepper.step
     calls = {"n": 0}
 
     def flaky(self, *a, **k):
@@ -287,14 +288,14 @@ def test_failure_mid_run_keeps_checkpoint_and_outputs(tmp_path, monkeypatch):
             raise ConvergenceError("CG did not converge (injected)", [1.0, 0.5])
         return real(self, *a, **k)
 
-    monkeypatch.setattr(CoupledRun, "_solid_step", flaky)
+    monkeypatch.setattr(StaticStepper, "step", flaky)
     out = tmp_path / "run"
     with pytest.raises(ConvergenceError):
         run_case(_small(), out, progress=False)
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "failed" and "injected" in s["error"] and s["n_exchange_steps"] == 1
     assert len(list(csv.DictReader((out / "timeseries.csv").open()))) == 2
-    monkeypatch.setattr(CoupledRun, "_solid_step", real)
+    monkeypatch.setattr(StaticStepper, "step", real)
     done = run_case(_small(), out, resume=True, progress=False)
     assert done.summary["status"] == "completed" and done.summary["n_exchange_steps"] == 3
 
@@ -385,7 +386,7 @@ def test_tdg_receives_the_pore_loads_at_its_sample_times(monkeypatch, rule, frac
 def _hull_on_grid(throats: bool):
     """Hull interface of three pores (one throat) on a 31³ node grid of the unit cube, every
     pore reaching nodes, so the paper's load balance holds to round-off."""
-    from porefsi.coupling.interface import hull_interface
+    from porefsi.coupling.hull import hull_interface
 
     g = np.linspace(0.0, 1.0, 31)
     x = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
@@ -582,16 +583,16 @@ def _renumbered(net, labels, perm):
 
 @pytest.mark.parametrize("method", ["traction", "hull"])
 def test_interface_is_invariant_to_pore_renumbering(method):
-    """Renumber the pores (network and voxel labels): build_interface gives the operator with its
-    columns permuted the same way, so the nodal forces of the same physical pressures are equal."""
-    from porefsi.coupling.problem import build_interface
+    """Renumber the pores (network and voxel labels): the case's interface builder gives the operator
+    with its columns permuted the same way, so the nodal forces of the same physical pressures are equal."""
+    from porefsi.case.problem import interface_options
 
     case = _small(interface={"method": method})
     p = build_problem(case)
     perm = np.random.default_rng(11).permutation(p.network.n_pores)
     net_b, lab_b = _renumbered(p.network, p.extraction.labels, perm)
     a = p.interface
-    b = build_interface(case, net_b, lab_b, p.mesh, p.image.voxel_size, p.image.origin)
+    b = interface_options(case).build(net_b, lab_b, p.mesh, voxel_size=p.image.voxel_size, origin=p.image.origin)
     assert abs(b.operator - a.operator[:, perm]).max() == 0.0
     np.testing.assert_array_equal(b.wall_area, a.wall_area[perm])
     for k in range(0, len(perm), 17):
@@ -603,10 +604,10 @@ def test_interface_is_invariant_to_pore_renumbering(method):
 
 
 def test_case_hull_loads_only_pore_wall_nodes():
-    """Through build_interface (the case path), the hull's labelled nodes are pore-wall surface
+    """Through the case path (interface_options), the hull's labelled nodes are pore-wall surface
     nodes: at coarsen 10 the enlarged hulls also contain 42 interior solid nodes, which an
     unrestricted search would load."""
-    from porefsi.coupling.interface import hull_interface
+    from porefsi.coupling.hull import hull_interface
 
     p = build_problem(_small(interface={"method": "hull"}))
     wall = np.zeros(p.mesh.n_nodes, bool)
@@ -698,7 +699,7 @@ def test_p2_traction_is_the_p2_integral_of_the_wall_pressure():
     facet quadrature of the same pore-wall pressures); it used to hand the P1 vertex split to
     the P2 vertices, i.e. point loads (0.34 relative difference in u at coarsen 10). The vertex
     view kept for outputs has the same resultant per pore."""
-    from porefsi.coupling.interface import boundary_facet_normals, facet_pores_from_labels
+    from porefsi.coupling.traction import boundary_facet_normals, facet_pores_from_labels
     from porefsi.solid import forms
 
     case = _small(solid={"coarsen": 10, "order": 2, "linear_solver": "amg"})

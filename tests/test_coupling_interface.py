@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from porefsi.coupling import _kernels
-from porefsi.coupling.interface import (
+from porefsi.coupling import (
+    _kernels,
     boundary_facet_normals,
     facet_pores_from_labels,
     hull_interface,

@@ -13,7 +13,7 @@ continuum, so only the lower bound gets a discretisation allowance.
 import numpy as np
 import pytest
 
-from porefsi.coupling.interface import (
+from porefsi.coupling import (
     boundary_facet_normals,
     facet_pores_from_labels,
     hull_interface,

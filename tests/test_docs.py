@@ -23,7 +23,7 @@ PAGES = sorted(DOCS.glob("*.md"))
 #: Pages written by docs/conf.py at build time (git-ignored), which links may point to.
 GENERATED = {"case_reference.md"}
 #: Pages whose ``>>>`` examples must run (docs/conf.py runs the same list at build time).
-DOCTEST_PAGES = ("user_guide.md",)
+DOCTEST_PAGES = ("user_guide.md", "api.md")
 
 _FENCE = re.compile(r"^(```|~~~).*?^\1", re.M | re.S)
 _INLINE_CODE = re.compile(r"`[^`\n]*`")

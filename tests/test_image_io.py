@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from porefsi.errors import InputError
-from porefsi.image import SAMPLES, VoxelImage, load_sample, read_image, segment, write_image
+from porefsi.image import SAMPLES, RawLayout, VoxelImage, load_sample, read_image, segment, write_image
 
 
 def _binary(rng, shape=(5, 6, 7), p=0.4):
@@ -297,21 +297,20 @@ def test_mhd_bad_headers(tmp_path, rng, header_kw, fragment):
 def test_raw_explicit_shape_and_dtype(tmp_path, rng, dtype, order):
     grey = rng.integers(0, 250, size=(3, 4, 5)).astype(dtype)
     np.ravel(grey, order=order).tofile(tmp_path / "r.bin")
-    img = read_image(tmp_path / "r.bin", shape=(3, 4, 5), dtype=dtype, threshold=120, voxel_size=1e-6,
-                     raw_order=order)
+    img = read_image(tmp_path / "r.bin", raw=RawLayout((3, 4, 5), dtype, order), threshold=120, voxel_size=1e-6)
     np.testing.assert_array_equal(img.phases, (grey <= 120).astype(np.uint8))
 
 
 def test_raw_wrong_size_and_missing_shape(tmp_path):
     np.zeros(100, np.uint16).tofile(tmp_path / "w.raw")  # 200 bytes
     with pytest.raises(InputError, match=r"holds 200 bytes .* needs 120"):
-        read_image(tmp_path / "w.raw", shape=(3, 4, 5), dtype="uint16", voxel_size=1e-6)
-    with pytest.raises(InputError, match=r"shape=\(nx, ny, nz\) and dtype.*--shape NX NY NZ"):
+        read_image(tmp_path / "w.raw", raw=RawLayout((3, 4, 5), "uint16"), voxel_size=1e-6)
+    with pytest.raises(InputError, match=r"raw=RawLayout\(shape=\(nx, ny, nz\), dtype=\.\.\.\).*--shape NX NY NZ"):
         read_image(tmp_path / "w.raw", voxel_size=1e-6)
     with pytest.raises(InputError, match="unknown dtype"):
-        read_image(tmp_path / "w.raw", shape=(10, 10, 1), dtype="uint77", voxel_size=1e-6)
+        read_image(tmp_path / "w.raw", raw=RawLayout((10, 10, 1), "uint77"), voxel_size=1e-6)
     with pytest.raises(InputError, match="3 positive integers"):
-        read_image(tmp_path / "w.raw", shape=(200,), dtype="uint8", voxel_size=1e-6)
+        read_image(tmp_path / "w.raw", raw=RawLayout((200,), "uint8"), voxel_size=1e-6)
 
 
 def test_tiff_stack_axes_and_no_resolution(tmp_path, rng):

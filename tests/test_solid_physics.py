@@ -384,3 +384,16 @@ def test_svk_instability_in_compression_is_named():
             assert 1 - 0.5 * reached > SVK_CRITICAL_STRETCH > 1 - 0.5 * (reached + 0.1)
         else:
             assert isinstance(mat, NeoHookean) and reached == 1.0
+
+
+def test_traction_factor_scales_that_traction_in_time():
+    """A Traction's ``factor(t)`` scales its own load only; constant tractions add unscaled."""
+    m = box_mesh((2, 2, 2), (1e-4, 1e-4, 1e-4))
+    const = Traction("zmax", traction=(0.0, 0.0, -1e3))
+    ramp = Traction("xmax", pressure=5e2, factor=lambda t: 3.0 * t)
+    f_const = SolidModel(m, MAT, [Fixed("zmin")], tractions=[const]).full_external_force(0.0)
+    f_ramp1 = SolidModel(m, MAT, [Fixed("zmin")], tractions=[Traction("xmax", pressure=5e2)]).full_external_force(0.0)
+    both = SolidModel(m, MAT, [Fixed("zmin")], tractions=[const, ramp])
+    for t in (0.0, 0.5, 2.0):
+        np.testing.assert_allclose(both.full_external_force(t), f_const + 3.0 * t * f_ramp1, rtol=1e-14, atol=1e-20)
+    assert np.abs(f_ramp1).max() > 0 and np.abs(f_const).max() > 0

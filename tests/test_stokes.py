@@ -250,3 +250,14 @@ def test_non_convergence_raises_with_history():
     with pytest.raises(ConvergenceError, match="did not converge") as exc:
         voxel_permeability(VoxelImage(_random_rock(), 1e-6), "x", maxiter=2)
     assert len(exc.value.history) == 2
+
+
+def test_a_preconditioner_that_hides_residuals_is_caught(monkeypatch):
+    """MINRES stops on the preconditioned residual: a badly scaled pressure block (1e-8) makes the
+    divergence residual nearly invisible to it, so the solver checks the true residual too."""
+    from porefsi.stokes import _pressure
+
+    original = _pressure.PressureMultigrid.matvec
+    monkeypatch.setattr(_pressure.PressureMultigrid, "matvec", lambda self, b: 1e-8 * original(self, b))
+    with pytest.raises(ConvergenceError, match="true relative residual"):
+        voxel_permeability(VoxelImage(_random_rock(), 1e-6), "x")

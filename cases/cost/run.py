@@ -13,7 +13,7 @@ method (convex-hull interface with 800 test points, TDG; pinned in ``case.toml``
   reference image, so nothing is voxelised or extracted) and without it
   (``run_case(..., reuse_extractions=False)``: every re-extraction computed, the paper's cost);
 - coupled at porefsi's defaults: the geometric update with the consistent traction interface and
-  the quasi-static solid (``porefsi.case.config.Case()``), not a row of the paper's table.
+  the quasi-static solid (``porefsi.Case()``), not a row of the paper's table.
 
 CPU time is ``time.process_time`` (this process, all threads; BLAS pinned to one thread): of the
 whole run, and by stage from the run summary's ``cpu_seconds_by_stage`` (wall time by stage is kept
@@ -25,9 +25,6 @@ Usage: python cases/cost/run.py [--smoke] [--out DIR]
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
 import sys
 import tempfile
 import time
@@ -35,12 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from porefsi.case.config import Case, load_case, smoke_case
-from porefsi.case.run import run_case
-from porefsi.coupling.problem import fluids_from_case, load_case_image
-from porefsi.flow.drainage import simulate_drainage
-from porefsi.image.ops import percolating_cluster
-from porefsi.network.extract import extract_network
+from porefsi import Case, extract_network, load_case, percolating_cluster, run_case, simulate_drainage, smoke_case
+from porefsi.case import coupled_options, load_case_image
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import loadavg, output_dir, parse_args, pyplot, write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_ROW = "coupled, porefsi defaults (traction, static)"
@@ -50,22 +46,6 @@ NOCACHE_ROW = "coupled (re-extraction, extraction cache off)"
 PAPER = {"fluid_min": 2.0, "coupled_min": 186.9, "decoupled_min": 10.6, "fluid_cells_k": 640, "solid_cells_k": 56.5,
          "note": "fluid cells 640 (footnote: number of nodes and throats; 240 pores in table 2, so the "
                  "'x 10^3' of the header cannot apply to this entry)"}
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _loadavg():
-    try:
-        return list(os.getloadavg())
-    except OSError:
-        return None
 
 
 def fluid_only(case) -> dict:
@@ -80,7 +60,7 @@ def fluid_only(case) -> dict:
     w, c = lap("image", w0, c0)
     net = extract_network(percolating_cluster(img, case.image.axis).image).network
     w, c = lap("extraction", w, c)
-    res = simulate_drainage(net, fluids_from_case(case), rate=case.drainage.rate, t_end=case.drainage.t_end,
+    res = simulate_drainage(net, coupled_options(case).fluids, rate=case.drainage.rate, t_end=case.drainage.t_end,
                             axis=case.image.axis)
     lap("fluid", w, c)
     return {"cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0, "stages_cpu_s": cpu,
@@ -107,7 +87,7 @@ STAGES = ("image", "extraction", "mesh", "interface_build", "fluid", "interface"
 
 
 def figure(rows: dict, path: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     stages = [s for s in STAGES if any(s in r["stages_cpu_s"] for r in rows.values())]
     fig, ax = plt.subplots(figsize=(10, 4.8))
     x = np.arange(len(rows))
@@ -158,14 +138,10 @@ def stage_markdown(rows: dict, key: str = "stages_cpu_s") -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps)")
-    ap.add_argument("--out", type=Path, default=None, help="output directory (default: this folder)")
-    args = ap.parse_args(argv)
-    out = args.out or (Path(tempfile.mkdtemp(prefix="porefsi-cost-")) if args.smoke else HERE)
-    out.mkdir(parents=True, exist_ok=True)
+    args = parse_args(__doc__, argv)
+    out = output_dir(args, HERE)
     t0 = time.perf_counter()
-    load0 = _loadavg()
+    load0 = loadavg()
     case = load_case(HERE / "case.toml")
     if args.smoke:
         case = smoke_case(case)
@@ -180,7 +156,6 @@ def main(argv=None) -> int:
                                 interface={"method": defaults.interface.method},
                                 coupling={"integrator": defaults.coupling.integrator})
     fig_dir = out / "figures"
-    fig_dir.mkdir(parents=True, exist_ok=True)
     figure(rows, fig_dir / "cost_by_stage.png")
     table = markdown(rows)
     res = {"paper": PAPER, "runs": rows, "table_markdown": table, "stage_cpu_markdown": stage_markdown(rows),
@@ -198,8 +173,8 @@ def main(argv=None) -> int:
                       "paper_coupled_over_decoupled": PAPER["coupled_min"] / PAPER["decoupled_min"],
                       "paper_coupled_over_fluid": PAPER["coupled_min"] / PAPER["fluid_min"]},
            "figures": ["cost_by_stage.png"], "wall_s": time.perf_counter() - t0,
-           "loadavg": {"before": load0, "after": _loadavg()}}
-    (out / "results.json").write_text(json.dumps(res, indent=1, default=float))
+           "loadavg": {"before": load0, "after": loadavg()}}
+    write_results(out / "results.json", res)
     print(table)
     print("\nCPU s by stage:\n" + res["stage_cpu_markdown"])
     print(f"cost: wall {res['wall_s']:.0f} s -> {out}")

@@ -18,10 +18,10 @@ relaxation ``none`` (plain fixed point) and ``aitken``, and records:
   show what the staggered scheme does beyond it, the first step at E = 100 kPa is re-run with the
   pore loads ``P* + kappa (P(U) - P*)`` handed to the solid, ``P(U)`` the DPN's pore pressures
   on the network deformed by ``U`` and ``(U*, P*)`` the converged physical step: the fixed point
-  is unchanged and the loop's Jacobian is kappa times the physical one. That sub-iteration is a
-  transcription of :class:`~porefsi.coupling.loop.CoupledRun`'s (static solid, geometric update,
-  Aitken as in the loop) through the public API, with one extra line for kappa; at kappa = 1 it
-  reproduces CoupledRun's residual history (checked in every run).
+  is unchanged and the loop's Jacobian is kappa times the physical one. That sub-iteration is
+  :class:`porefsi.CoupledRun`'s own, given the amplification as its ``load_map`` and observed
+  through ``on_iteration`` (every iterate); at kappa = 1 it is the physical loop itself (the
+  residual history of the sweep's first step, checked in every run).
 
 The solid is solved quasi-statically (``integrator = "static"``: every elastic period is far
 below the 1 s exchange step even at E = 1 kPa), neo-Hookean (valid at finite strain; St
@@ -40,23 +40,18 @@ import os
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
-import argparse  # noqa: E402
+import dataclasses  # noqa: E402
 import json  # noqa: E402
-import subprocess  # noqa: E402
-import tempfile  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from porefsi.case.config import load_case  # noqa: E402
-from porefsi.coupling.loop import CoupledRun  # noqa: E402
-from porefsi.coupling.problem import build_problem  # noqa: E402
-from porefsi.coupling.relaxation import aitken_omega  # noqa: E402
-from porefsi.coupling.update import geometric_update, update_nodes  # noqa: E402
-from porefsi.errors import ConvergenceError, PorefsiError  # noqa: E402
-from porefsi.flow.drainage import DrainageSimulator  # noqa: E402
-from porefsi.solid.static import solve_static  # noqa: E402
+from porefsi import ConvergenceError, CoupledRun, PorefsiError, load_case, problem_from_case  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import git_head, output_dir, parse_args, pyplot, write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 N_ITER = 25
@@ -93,13 +88,13 @@ def first_step(base, regime: str, material: str, E: float, relaxation: str, n_it
     out = {"regime": regime, "material": material, "E": E, "relaxation": relaxation}
     c0 = time.process_time()
     try:
-        run = CoupledRun(build_problem(case))
+        run = CoupledRun(problem_from_case(case))
         for rec in run.steps():  # "converges" only when an iterate repeats bit for bit (residual 0)
             n_used = int(rec.row["subiterations"])
             out.update(status="ran", history=[0.0])
         if n_used > 1:  # the same deterministic iteration stopped one short returns the history before the 0
             try:
-                next(CoupledRun(build_problem(case.replace(coupling={"subiterations": n_used - 1}))).steps())
+                next(CoupledRun(problem_from_case(case.replace(coupling={"subiterations": n_used - 1}))).steps())
             except ConvergenceError as exc:
                 out["history"] = [float(h) for h in exc.history] + [0.0]
     except ConvergenceError as exc:
@@ -129,7 +124,7 @@ def plain_pressure(base, regime: str) -> dict:
     rate, dt = REGIMES[regime]
     case = base.replace(solid={"E": 20e9, "material": "svk"}, drainage={"rate": rate, "t_end": dt},
                         coupling={"exchange_dt": dt, "subiterations": 1, "integrator": "static"})
-    rec = next(CoupledRun(build_problem(case)).steps())
+    rec = next(CoupledRun(problem_from_case(case)).steps())
     return {"inlet_pressure_Pa": rec.row["inlet_pressure_Pa"], "max_pore_pressure_Pa": rec.row["max_pore_pressure_Pa"],
             "sw": rec.row["sw"]}
 
@@ -140,7 +135,7 @@ def multistep(base, E: float, relaxation: str, t_end: float) -> dict:
     out = {"E": E, "relaxation": relaxation, "iterations": [], "residual": [], "max_displacement_m": []}
     c0 = time.process_time()
     try:
-        for rec in CoupledRun(build_problem(case)).steps():
+        for rec in CoupledRun(problem_from_case(case)).steps():
             out["iterations"].append(rec.row["subiterations"])
             out["residual"].append(rec.row["coupling_residual"])
             out["max_displacement_m"].append(rec.row["max_displacement_m"])
@@ -216,59 +211,52 @@ def _amp_case(base, n_iter: int, relaxation: str = "none"):
 
 
 def substeps(problem, n_iter: int, relaxation: str, kappa: float = 1.0, target=None, trace: bool = False) -> dict:
-    """First exchange step's sub-iterations, CoupledRun's loop transcribed, pore loads amplified by kappa.
+    """The first exchange step's sub-iterations, run by :class:`porefsi.CoupledRun`, pore loads amplified by kappa.
 
-    Static solid from u = 0 at t = 0 to t1, geometric network update of the reference network
-    with the relaxed total displacement, Aitken as in ``porefsi.coupling.loop``. The solid is
-    loaded with ``P* + kappa (P(U_k) - P*)`` (``target = (U*, P*)``; kappa = 1: the DPN's own).
+    ``problem``'s loop (static solid, geometric update of the reference network with the relaxed
+    total displacement) with ``n_iter`` sub-iterations to a tolerance of 1e-300 (all of them run)
+    and ``relaxation``; the solid is loaded with ``P* + kappa (P(U_k) - P*)`` (``target = (U*, P*)``
+    as the loop's ``load_map``; without ``target`` the DPN's own pressures), and every iterate is
+    observed through ``on_iteration``.
     """
-    case = problem.case
-    t1 = case.coupling.exchange_dt
-    model, itf = problem.model, problem.interface
-    sim0 = DrainageSimulator(problem.network, problem.fluids, rate=case.drainage.rate, axis=case.image.axis)
-    nodes = update_nodes(problem.network.pore_coords, problem.network.pore_radius, itf.pore_nodes,
-                         problem.mesh.points, problem.node_spacing)
-    u0 = np.zeros(model.n_dofs)
-    U_start = model.expand(u0, 0.0)
-    U_iter, r_prev, omega, net = None, None, 1.0, problem.network
-    hist, err, omegas, status = [], [], [], "ran"
-    P = U1 = top = None
-    tr = {"pore": None, "load_Pa": [], "nw_saturation": [], "volume_ratio": [], "share_of_force": []}
+    opts = problem.options.replace(coupling={"subiterations": n_iter, "subiteration_tol": 1e-300,
+                                             "relaxation": relaxation})
+    problem = dataclasses.replace(problem, options=opts)
+    t1 = opts.coupling.exchange_dt
+    iterates = []
+    load_map = None if target is None else (lambda P: target[1] + kappa * (P - target[1]))
+    status = "ran"
     try:
-        for _ in range(n_iter):
-            st = sim0.with_network(net).advance_to(t1)
-            P = np.nan_to_num(np.asarray(st.fluid_pressure, float), nan=0.0)
-            load = P if target is None else target[1] + kappa * (P - target[1])
-            if trace:  # the most loaded pore of the first iteration, followed through the iterations
-                top = int(np.argmax(P)) if top is None else top
-                tr["pore"] = top
-                tr["load_Pa"].append(float(P[top]))
-                tr["nw_saturation"].append(float(np.asarray(st.nw_saturation)[top]))
-                tr["volume_ratio"].append(float(net.pore_volume[top] / problem.network.pore_volume[top]))
-                only = np.where(np.arange(P.size) == top, P, 0.0)
-                tr["share_of_force"].append(float(np.linalg.norm(itf.nodal_forces(only))
-                                                  / np.linalg.norm(itf.nodal_forces(P))))
-            u1, _ = solve_static(model.with_nodal_forces(itf.nodal_forces(load)), t1, u0=u0, t_prev=0.0)
-            U1 = model.expand(u1, t1)
-            base_ = U_start if U_iter is None else U_iter
-            r = U1 - base_
-            if relaxation == "aitken":
-                omega = aitken_omega(omega, r, r_prev)
-            hist.append(float(np.linalg.norm(r)) / max(float(np.linalg.norm(U1)), 1e-300))
-            U_iter, r_prev = base_ + omega * r, r
-            omegas.append(float(omega))
-            if target is not None:
-                err.append(float(np.linalg.norm(U_iter - target[0]) / np.linalg.norm(target[0])))
-            net = geometric_update(problem.network, nodes, problem.mesh.points, U_iter)
+        CoupledRun(problem, load_map=load_map, on_iteration=iterates.append).advance()
+    except ConvergenceError:  # every sub-iteration ran (the tolerance is 1e-300)
+        pass
     except PorefsiError as exc:  # the diverging iterate inverts an element or a pore
-        status = f"{type(exc).__name__} at sub-iteration {len(hist) + 1}: {str(exc)[:120]}"
-    out = {"relaxation": relaxation, "kappa": kappa, "status": status, "history": hist, "omega": omegas,
-           "U": U_iter, "P": P}
-    if target is not None:
-        out["error_history"] = err  # |U_k - U*| / |U*| after each sub-iteration (relaxed iterate)
+        status = f"{type(exc).__name__} at sub-iteration {len(iterates) + 1}: {str(exc)[:120]}"
+    out = {"relaxation": relaxation, "kappa": kappa, "status": status,
+           "history": [it.residual for it in iterates], "omega": [it.omega for it in iterates],
+           "U": iterates[-1].relaxed if iterates else None, "P": iterates[-1].pressures[t1] if iterates else None}
+    if target is not None:  # |U_k - U*| / |U*| after each sub-iteration (relaxed iterate)
+        out["error_history"] = [float(np.linalg.norm(it.relaxed - target[0]) / np.linalg.norm(target[0]))
+                                for it in iterates]
     if trace:
-        out["trace"] = tr
+        out["trace"] = _trace(problem, iterates, t1)
     return out
+
+
+def _trace(problem, iterates: list, t1: float) -> dict:
+    """The most loaded pore of the first iteration, followed through the iterations."""
+    itf, ref = problem.interface, problem.network
+    P0 = iterates[0].pressures[t1]
+    top = int(np.argmax(P0))
+    tr = {"pore": top, "load_Pa": [], "nw_saturation": [], "volume_ratio": [], "share_of_force": []}
+    for it in iterates:
+        P = it.pressures[t1]
+        tr["load_Pa"].append(float(P[top]))
+        tr["nw_saturation"].append(float(np.asarray(it.flow.nw_saturation)[top]))
+        tr["volume_ratio"].append(float(it.network.network.pore_volume[top] / ref.pore_volume[top]))
+        only = np.where(np.arange(P.size) == top, P, 0.0)
+        tr["share_of_force"].append(float(np.linalg.norm(itf.nodal_forces(only)) / np.linalg.norm(itf.nodal_forces(P))))
+    return tr
 
 
 def growth(h) -> float | None:
@@ -283,7 +271,7 @@ def amplified(base, smoke: bool) -> dict:
     n_iter = 10 if smoke else N_ITER
     kappas = AMP_KAPPAS_SMOKE if smoke else AMP_KAPPAS
     c0 = time.process_time()
-    problem = build_problem(_amp_case(base, n_iter))
+    problem = problem_from_case(_amp_case(base, n_iter))
     fixed = substeps(problem, n_iter, "aitken")  # the physical step, converged to round-off
     target = (fixed["U"], fixed["P"])
     rows = []
@@ -303,7 +291,7 @@ def amplified(base, smoke: bool) -> dict:
             print(f"amplified kappa={kappa:5g} {rel:>6}: {r['status'][:40]:<8} factor={fs}"
                   f" it={r['iterations_to_tol']} |U-U*|/|U*|={e[-1] if e else float('nan'):.2g}"
                   f" ({r['cpu_s']:.1f} s)", flush=True)
-    check = {}  # kappa = 1 is the physical loop: the transcription must give CoupledRun's history
+    check = {}  # kappa = 1 is the physical loop: the observed iterates must give the sweep's first-step history
     for rel in (("none",) if smoke else ("none", "aitken")):
         lib = first_step(base, AMP_REGIME, "neo-hookean", AMP_E, rel, n_iter)["history"]
         own = next(r for r in rows if r["kappa"] == 1.0 and r["relaxation"] == rel)["history"]
@@ -313,7 +301,7 @@ def amplified(base, smoke: bool) -> dict:
     g_phys = next(r for r in rows if r["kappa"] == 1.0 and r["relaxation"] == "none")["factor"]
     mech = None
     if not smoke:  # the mechanism at the softest E that runs: the filling pore's load vs its volume
-        mp = build_problem(_amp_case(base, 10).replace(solid={"E": MECH_E}))
+        mp = problem_from_case(_amp_case(base, 10).replace(solid={"E": MECH_E}))
         mech = substeps(mp, 10, "none", trace=True)
         mech = {"E": MECH_E, "history": mech["history"], **mech["trace"]}
         ld = np.asarray(mech["load_Pa"])
@@ -324,15 +312,13 @@ def amplified(base, smoke: bool) -> dict:
     return {"regime": AMP_REGIME, "E": AMP_E, "material": "neo-hookean", "n_iter": n_iter, "mechanism": mech,
             "physical_factor": g_phys, "kappa_critical_predicted": 1.0 / g_phys if g_phys else None,
             "fixed_point_max_displacement_m": float(np.abs(target[0]).max()),
-            "fixed_point_residual": fixed["history"][-1], "transcription_check": check, "rows": rows,
+            "fixed_point_residual": fixed["history"][-1], "kappa_1_check": check, "rows": rows,
             "cpu_s": time.process_time() - c0}
 
 
 def plot_amplified(amp: dict, path: Path) -> None:
     """Residual histories at each kappa (left) and the factor per sub-iteration vs kappa (right)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(13, 4.8))
     rows = amp["rows"]
     kappas = sorted({r["kappa"] for r in rows})
@@ -379,22 +365,9 @@ def plot_amplified(amp: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def _code_version() -> str:
-    try:
-        head = subprocess.run(["git", "-C", str(HERE), "rev-parse", "--short=12", "HEAD"], capture_output=True,
-                              text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(HERE), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return head + ("+dirty" if dirty else "")
-
-
 def plot_histories(rows: list[dict], path: Path) -> None:
     """Residual histories, one panel per regime (neo-Hookean), none solid / Aitken dashed."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     regimes = [r for r in REGIMES if any(x["regime"] == r for x in rows)]
     fig, axes = plt.subplots(1, len(regimes), figsize=(6.5 * len(regimes), 4.8), squeeze=False)
     for ax, reg in zip(axes[0], regimes, strict=True):
@@ -424,9 +397,7 @@ def plot_histories(rows: list[dict], path: Path) -> None:
 
 def plot_vs_E(rows: list[dict], pressures: dict, path: Path, model: dict | None = None) -> None:
     """Contraction factor and iterations to 1e-6 against E, with the failure region and the 1-D model."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(13, 4.8))
     styles = {("neo-hookean", "none"): ("-o", "none"), ("neo-hookean", "aitken"): ("--s", "Aitken"),
               ("svk", "none"): (":^", "none (SVK)"), ("svk", "aitken"): (":v", "Aitken (SVK)")}
@@ -477,9 +448,7 @@ def plot_vs_E(rows: list[dict], pressures: dict, path: Path, model: dict | None 
 
 def plot_multistep(ms: list[dict], path: Path) -> None:
     """Sub-iterations per exchange step, whole runs."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     for i, m in enumerate(ms):
         ls = "-o" if m["relaxation"] == "none" else "--s"
@@ -496,18 +465,16 @@ def plot_multistep(ms: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def main(argv=None) -> int:
-    """Run the study (all parts, or those of ``--parts``)."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--smoke", action="store_true",
-                   help="two E values, 8 sub-iterations, no whole runs, kappa 1 and 100")
-    p.add_argument("--out", type=Path, default=None, help="output folder (default: this folder; --smoke: temp)")
+def _arguments(p) -> None:
     p.add_argument("--parts", nargs="+", choices=PARTS, default=list(PARTS),
                    help="run only these parts; the others' results are kept from OUT/results.json")
-    args = p.parse_args(argv)
-    out = args.out if args.out is not None else (
-        Path(tempfile.mkdtemp(prefix="porefsi-coupling_stability-smoke-")) if args.smoke else HERE)
-    (out / "figures").mkdir(parents=True, exist_ok=True)
+
+
+def main(argv=None) -> int:
+    """Run the study (all parts, or those of ``--parts``)."""
+    args = parse_args(__doc__, argv, _arguments, smoke_help="two E values, 8 sub-iterations, no whole runs, "
+                      "kappa 1 and 100")
+    out = output_dir(args, HERE)
     base = load_case(HERE / "case.toml")
     n_iter = 8 if args.smoke else N_ITER
     old = {}
@@ -520,7 +487,7 @@ def main(argv=None) -> int:
             raise SystemExit(f"{prev} is a {'smoke' if old.get('smoke') else 'full'} run; run all parts")
     summary = {"case": "coupling_stability", "smoke": args.smoke, "n_iter": n_iter, "tol": TOL}
     runs = dict(old.get("runs", {}))
-    stamp = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "code": _code_version()}
+    stamp = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "code": git_head()}
     if "sweep" in args.parts:
         design = sweep_design(args.smoke)
         t0 = time.process_time()
@@ -562,7 +529,7 @@ def main(argv=None) -> int:
     model = gain_model(rows)
     summary.update(pressures=pressures, first_step=rows, gain_model=model, multistep=ms, amplified=amp,
                    runs=runs)
-    (out / "results.json").write_text(json.dumps(summary, indent=1, default=float))
+    write_results(out / "results.json", summary)
     plot_histories(rows, out / "figures" / "stability_histories.png")
     plot_vs_E(rows, pressures, out / "figures" / "stability_vs_E.png", model)
     if ms:

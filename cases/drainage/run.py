@@ -1,6 +1,6 @@
 """Case ``drainage``: the default coupled run on the paper's set-up (figures 5-7) and its 2x4 panel figure.
 
-One coupled run of ``case.toml`` through :func:`porefsi.case.run.run_case` (the same code path
+One coupled run of ``case.toml`` through :func:`porefsi.run_case` (the same code path
 as ``porefsi run case.toml``). At the snapshot times 1, 3, 5 and 15 s it keeps the network
 saturation, the pore pressures and the solid displacement, then draws
 
@@ -18,18 +18,17 @@ Usage: ``python cases/drainage/run.py [--smoke] [--out DIR] [--work DIR]``.
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from porefsi import plot
-from porefsi.case.config import load_case, smoke_case
-from porefsi.case.run import run_case
+from porefsi import MILLIDARCY, load_case, plot, run_case, smoke_case
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import loadavg, output_dir, parse_args, pyplot, write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 #: What the paper reports for this run (section 3, table 2).
@@ -41,39 +40,16 @@ PAPER = {
     "permeability_mD": 210.0,
     "porosity": 0.1882,
 }
-MD = 9.869233e-16  # m^2 per millidarcy
 
 
-def parse_args(argv=None) -> argparse.Namespace:
-    """Command line: ``--smoke``, ``--out DIR``, ``--work DIR``."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="where figures/ and results.json go (default: this folder; with --smoke a temporary one)")
+def _arguments(p) -> None:
     p.add_argument("--work", type=Path, default=None,
                    help="keep the run directory (ParaView series, timeseries.csv) here; default: temporary")
-    return p.parse_args(argv)
-
-
-def output_dir(args: argparse.Namespace, name: str) -> Path:
-    """The --out folder, defaulting to the case folder (full) or a fresh temporary folder (smoke)."""
-    if args.out is not None:
-        out = args.out
-    elif args.smoke:
-        out = Path(tempfile.mkdtemp(prefix=f"porefsi-{name}-smoke-"))
-    else:
-        out = HERE
-    (out / "figures").mkdir(parents=True, exist_ok=True)
-    return out
 
 
 def _compose(paths, titles, out: Path, *, nrow: int, suptitle: str) -> Path:
     """Tile rendered PNGs into one figure (row-major)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     ncol = int(np.ceil(len(paths) / nrow))
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.6 * nrow), squeeze=False)
     for ax in axes.ravel():
@@ -88,21 +64,13 @@ def _compose(paths, titles, out: Path, *, nrow: int, suptitle: str) -> Path:
     return out
 
 
-def _loadavg() -> list | None:
-    """1, 5 and 15 min load averages (the machine is shared), or None where unavailable."""
-    try:
-        return [round(x, 2) for x in os.getloadavg()]
-    except OSError:
-        return None
-
-
 def main(argv=None) -> dict:
     """Run the case, draw the figures, write ``results.json``; return the results."""
-    args = parse_args(argv)
+    args = parse_args(__doc__, argv, _arguments)
     case = load_case(HERE / "case.toml")
     if args.smoke:
         case = smoke_case(case)
-    out = output_dir(args, "drainage")
+    out = output_dir(args, HERE)
     work_tmp = None
     if args.work is None:
         work_tmp = tempfile.TemporaryDirectory(prefix="porefsi-drainage-run-")
@@ -181,7 +149,7 @@ def main(argv=None) -> dict:
                      "network_update": case.network.update, "t_end_s": case.drainage.t_end,
                      "rate_m3_s": case.drainage.rate},
         "n_pores": s["n_pores"], "n_throats": s["n_throats"], "n_fe_nodes": s["n_nodes"], "n_fe_elements": s["n_tets"],
-        "permeability_mD": s["permeability_initial_m2"] / MD,
+        "permeability_mD": s["permeability_initial_m2"] / MILLIDARCY,
         "interface_unloaded_pores": s["interface_unloaded_pores"],
         "at_snapshots": [{"t_s": t, **{k: snaps[t]["row"][k] for k in (
             "sw", "inlet_pressure_Pa", "max_pore_pressure_Pa", "total_pore_force_N", "max_displacement_m",
@@ -198,11 +166,11 @@ def main(argv=None) -> dict:
         "cpu_seconds_run": run_cpu,
         "seconds_by_stage": s["seconds_by_stage"],
         "cpu_seconds_by_stage": s["cpu_seconds_by_stage"],
-        "loadavg": _loadavg(),
+        "loadavg": loadavg(),
         "paper": PAPER,
         "figures": [str(p.relative_to(out)) for p in made],
     }
-    (out / "results.json").write_text(json.dumps(results, indent=1, default=float) + "\n", encoding="utf-8")
+    write_results(out / "results.json", results)
     renders.cleanup()
     if work_tmp is not None:
         work_tmp.cleanup()

@@ -27,20 +27,18 @@ Usage: ``python cases/flow_rates/run.py [--smoke] [--out DIR] [--serial | --sche
 
 from __future__ import annotations
 
-import argparse
 import csv
-import json
-import tempfile
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from porefsi.case.config import load_case, smoke_case
-from porefsi.coupling.problem import build_problem
-from porefsi.flow.drainage import DrainageSimulator
-from porefsi.flow.invasion import invasion_percolation
-from porefsi.flow.permeability import absolute_permeability
+from porefsi import DrainageSimulator, absolute_permeability, load_case, problem_from_case, smoke_case
+from porefsi.flow import invasion_percolation
 from porefsi.sweep import run_sweep, sweep_from_dict
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import output_dir, parse_args, pyplot, sweep_arguments, write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 PAPER_CASES = {"A": 1.25e-13, "B": 2.5e-13, "C": 5e-11, "D": 5e-10}
@@ -58,26 +56,9 @@ SCAN_SMOKE = np.logspace(-13, -9, 3)
 PAPER = {"cases_m3_s": PAPER_CASES, "critical_rate_m3_s": "slightly below 1e-10"}
 
 
-def parse_args(argv=None) -> argparse.Namespace:
-    """Command line: ``--smoke``, ``--out DIR``."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps, 2 rates)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="where figures/ and results.json go (default: this folder; with --smoke a temporary one)")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--serial", action="store_true", help="run the members in this process (default with --smoke)")
-    where.add_argument("--scheduler", default=None, help="address of a running Dask scheduler")
-    p.add_argument("--resume", action="store_true", help="continue the sweep in OUT/runs (default: run it afresh)")
+def _arguments(p) -> None:
+    sweep_arguments(p)
     p.add_argument("--write-sweep", action="store_true", help="write sweep.toml (the full study's members) and stop")
-    return p.parse_args(argv)
-
-
-def output_dir(args: argparse.Namespace, name: str) -> Path:
-    """The --out folder, defaulting to the case folder (full) or a fresh temporary folder (smoke)."""
-    out = args.out if args.out is not None else (
-        Path(tempfile.mkdtemp(prefix=f"porefsi-{name}-smoke-")) if args.smoke else HERE)
-    (out / "figures").mkdir(parents=True, exist_ok=True)
-    return out
 
 
 def window(rate: float, pore_volume: float, t_end: float, dt: float) -> tuple[float, float]:
@@ -152,12 +133,12 @@ def fluid_scan(net, fluids, axis: str, rates, t_end: float, window_end) -> list[
 
 def main(argv=None) -> dict:
     """Sweep the rate, draw the figure, write ``results.json``; return the results."""
-    args = parse_args(argv)
+    args = parse_args(__doc__, argv, _arguments, smoke_help="seconds-long version (coarse mesh, 2 steps, 2 rates)")
     base = load_case(HERE / "case.toml")
     if args.smoke:
         base = smoke_case(base)
-    out = output_dir(args, "flow_rates")
-    prob = build_problem(base)
+    out = output_dir(args, HERE)
+    prob = problem_from_case(base)
     net, fl, axis = prob.network, prob.fluids, base.image.axis
     ax_i = "xyz".index(axis)
     extent = np.asarray(prob.image.extent, float)
@@ -206,10 +187,7 @@ def main(argv=None) -> dict:
               f"max vM = {r['max_von_mises_Pa'] / 1e3:.4g} kPa, Sw = {r['final_sw']:.3f} ({r['wall_seconds']:.1f} s)",
               flush=True)
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     q = np.array([r["rate_m3_s"] for r in rows])
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.5))
@@ -268,7 +246,7 @@ def main(argv=None) -> dict:
         "coupled": rows, "fluid_scan": scan, "paper": PAPER, "figures": [str(fig_path.relative_to(out))],
         "sweep_table": str(res.table.relative_to(out)),
     }
-    (out / "results.json").write_text(json.dumps(results, indent=1) + "\n", encoding="utf-8")
+    write_results(out / "results.json", results)
     print(f"flow_rates: Q* = {q_star:.3g} m^3/s estimated, {q_meas} measured (Ca* = "
           f"{results['critical_capillary_number']:.2g}); paper: slightly below 1e-10 -> {out}")
     return results

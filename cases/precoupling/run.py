@@ -20,36 +20,20 @@ Usage: python cases/precoupling/run.py [--smoke] [--out DIR]
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from porefsi.case.config import load_case, smoke_case
-from porefsi.case.run import run_case
-from porefsi.coupling.problem import build_problem
-from porefsi.coupling.update import deformed_image, geometric_update, mean_size_change, update_nodes
-from porefsi.flow.permeability import absolute_permeability
-from porefsi.image.ops import percolating_cluster
-from porefsi.network.extract import extract_network
-from porefsi.solid.static import solve_static
+from porefsi import MILLIDARCY as MD
+from porefsi import absolute_permeability, load_case, problem_from_case, run_case, smoke_case, solve_static
+from porefsi.coupling import GeometricUpdate, NetworkState, deformed_image, extract_flow_network, mean_size_change
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import output_dir, parse_args, pyplot, write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-
-MD = 9.869233e-16  # m^2 per millidarcy
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def part_a(case, out: Path) -> dict:
@@ -63,7 +47,7 @@ def part_a(case, out: Path) -> dict:
 
     res = run_case(case, out / "run_paper_loads", figures=False, on_record=keep, progress=False, overwrite=True)
     # the deformed image of the final displacement against the reference image
-    p = build_problem(case)
+    p = problem_from_case(case)
     img = deformed_image(p.image, p.mesh.points, last["U"], p.node_spacing)
     changed = int(np.count_nonzero(img.phases != p.image.phases))
     return {
@@ -78,15 +62,15 @@ def part_a(case, out: Path) -> dict:
     }
 
 
-def _extract(img, axis):
-    return extract_network(percolating_cluster(img, axis).image).network
+def _extract(img, case):
+    return extract_flow_network(img, case.image.axis, case.network.conductance).network
 
 
 def part_b(case, strains) -> dict:
     """One-way strain sweep: re-extraction (2 iterations) vs geometric update."""
     rate = 1e-3  # 1/s; the static solve at time t = strain / rate applies the strain
     case = case.replace(solid={"strain_rate": rate}, network={"update": "geometric"})
-    p = build_problem(case)
+    p = problem_from_case(case)
     axis = case.image.axis
     net0 = p.network
     k0 = absolute_permeability(net0, axis).k_m2
@@ -94,8 +78,9 @@ def part_b(case, strains) -> dict:
                            "n_pores_reextract", "n_throats_reextract", "mean_r_reextract", "mean_r_geometric",
                            "k_reextract", "k_geometric", "top_displacement_voxels")}
     u = None
-    # the nodes that carry each pore, as in the coupled loop (wall nodes, or the surrounding mesh nodes)
-    nodes = update_nodes(net0.pore_coords, net0.pore_radius, p.interface.pore_nodes, p.mesh.points, p.node_spacing)
+    # the coupled loop's geometric update (each pore carried by its wall nodes, or the surrounding mesh nodes)
+    geometric = GeometricUpdate(net0, p.mesh.points, p.node_spacing)
+    reference = NetworkState(net0, p.interface, p.extraction.labels)
     prev_net, t_prev = net0, 0.0
     psd = {}
     for s in strains:
@@ -107,9 +92,9 @@ def part_b(case, strains) -> dict:
         else:
             U = np.zeros_like(p.mesh.points)
         img = deformed_image(p.image, p.mesh.points, U, p.node_spacing)
-        re1 = _extract(img, axis)          # pre-coupling iteration 1
-        re2 = _extract(img, axis)          # iteration 2: the same deformed image, extracted again
-        geo = geometric_update(net0, nodes, p.mesh.points, U)
+        re1 = _extract(img, case)          # pre-coupling iteration 1
+        re2 = _extract(img, case)          # iteration 2: the same deformed image, extracted again
+        geo = geometric.update(U, reference).network
         out["strain"].append(float(s))
         out["Ea_iter1"].append(mean_size_change(prev_net, re1))
         out["Ea_iter2"].append(mean_size_change(re1, re2))
@@ -132,7 +117,7 @@ def part_b(case, strains) -> dict:
 
 
 def figures(a: dict, b: dict, psd: dict, fig_dir: Path) -> list[str]:
-    plt = _plt()
+    plt = pyplot()
     fig_dir.mkdir(parents=True, exist_ok=True)
     made = []
     # figure 10: E_a per pre-coupling iteration
@@ -220,7 +205,7 @@ def part_c(case, out: Path, t_end: float) -> dict:
 
 
 def figure_c(c: dict, fig_dir: Path) -> str:
-    plt = _plt()
+    plt = pyplot()
     re, geo = c["reextract"], c["geometric"]
     t = np.asarray(re["time_s"])
     fig, axs = plt.subplots(1, 2, figsize=(11, 4))
@@ -251,12 +236,8 @@ def figure_c(c: dict, fig_dir: Path) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps)")
-    ap.add_argument("--out", type=Path, default=None, help="output directory (default: this folder)")
-    args = ap.parse_args(argv)
-    out = args.out or (Path(tempfile.mkdtemp(prefix="porefsi-precoupling-")) if args.smoke else HERE)
-    out.mkdir(parents=True, exist_ok=True)
+    args = parse_args(__doc__, argv)
+    out = output_dir(args, HERE)
     t0 = time.perf_counter()
     case = load_case(HERE / "case.toml")
     strains = np.round(np.arange(0.0, 1.2e-2 + 1e-12, 1e-3), 6)
@@ -277,7 +258,7 @@ def main(argv=None) -> int:
         "smoke": bool(args.smoke),
         "wall_s": time.perf_counter() - t0,
     }
-    (out / "results.json").write_text(json.dumps(res, indent=1))
+    write_results(out / "results.json", res)
     ea_final = b["Ea_vs_reference"][-1]
     print(f"precoupling: paper loads max E_a = {np.nanmax(np.array(a['Ea'][1:], float)):.3g}, "
           f"iterations {max(a['iterations'][1:])}; strain {b['strain'][-1]:.3g}: E_a vs reference {ea_final:.3g}, "

@@ -30,23 +30,29 @@ import os
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")  # before numpy/numba load: single-thread CPU time is comparable
 
-import argparse  # noqa: E402
 import gc  # noqa: E402
 import json  # noqa: E402
-import tempfile  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
-from porefsi._version import __version__  # noqa: E402
-from porefsi.case.config import case_to_toml, load_case, smoke_case  # noqa: E402
-from porefsi.coupling.loop import CoupledRun  # noqa: E402
-from porefsi.coupling.problem import build_problem  # noqa: E402
-from porefsi.coupling.update import displacement_on_grid  # noqa: E402
-from porefsi.errors import PorefsiError  # noqa: E402
-from porefsi.flow.drainage import DrainageSimulator  # noqa: E402
+from porefsi import (  # noqa: E402
+    CoupledRun,
+    DrainageSimulator,
+    PorefsiError,
+    __version__,
+    load_case,
+    problem_from_case,
+    smoke_case,
+)
+from porefsi.case import case_to_toml  # noqa: E402
+from porefsi.coupling import displacement_on_grid  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import git_head, output_dir, parse_args, pyplot, write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 REF_FILE = HERE / "reference" / "reference.npz"
@@ -110,7 +116,7 @@ def run_variant(case, skip_solves=None) -> dict:
     c0, w0 = time.process_time(), time.perf_counter()
     res = {"status": "ok", "times": [0.0], "U": [], "rows": []}
     try:
-        prob = build_problem(case)
+        prob = problem_from_case(case)
         run = CoupledRun(prob)
         if skip_solves is not None:  # not a case-file key: the DPN option set through the API
             run.sim = DrainageSimulator(prob.network, prob.fluids, rate=case.drainage.rate, axis=case.image.axis,
@@ -184,25 +190,11 @@ def build_reference(base, smoke: bool, sample_times) -> dict:
     idx = eval_points(res)
     ref = {"points": res["points"][idx], "times": np.asarray(sample_times, float),
            "u": np.stack([at_time(res, t)[idx] for t in sample_times]), "case_toml": case_to_toml(case),
-           "porefsi_version": __version__, "commit": _commit(),
+           "porefsi_version": __version__, "commit": git_head(),
            "built_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
            "cpu_s": res["cpu_s"], "wall_s": res["wall_s"], "n_nodes": res["n_nodes"], "n_tets": res["n_tets"],
            **{k: v for k, v in final_scalars(res).items()}}
     return ref
-
-
-def _commit() -> str | None:
-    """The checkout's commit (with ``+dirty`` for uncommitted changes), or None outside git."""
-    import subprocess
-
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True,
-                              check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "porefsi"], cwd=HERE.parent.parent,
-                               capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return None
-    return head + ("+dirty" if dirty else "")
 
 
 def reference_stale(ref: dict, base, smoke: bool) -> str | None:
@@ -326,9 +318,7 @@ KNOB_STYLE = {"baseline": ("k", "*"), "mesh": ("C0", "o"), "order": ("C1", "s"),
 
 def plot(rows: list[dict], ref: dict, path: Path) -> None:
     """Error vs CPU time (log-log) with the Pareto front; same-mesh differences from the default."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     ok = [r for r in rows if r["status"] == "ok"]
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(14, 6), gridspec_kw={"width_ratios": [1.6, 1]})
     seen = set()
@@ -414,26 +404,19 @@ def _front_mark(r: dict) -> str:
     return ""
 
 
-def parse_args(argv=None) -> argparse.Namespace:
-    """Command line."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--smoke", action="store_true", help="seconds-long version (coarsen 10 runs, coarsen 6 reference)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="where figures/, results.json and table.md go (default: this folder; --smoke: a temp folder)")
+def _arguments(p) -> None:
     p.add_argument("--rebuild-reference", action="store_true", help="recompute the cached reference")
     p.add_argument("--check-reference", action="store_true",
                    help="also compare the reference with a coarsen-2 quasi-static solve (~2 min CPU, several GB)")
     p.add_argument("--replot", action="store_true", help="redraw the figure and table from results.json")
     p.add_argument("--only", nargs="*", default=None, help="run only these variants (plus the baseline)")
-    return p.parse_args(argv)
 
 
 def main(argv=None) -> int:
     """Run the study."""
-    args = parse_args(argv)
-    out = args.out if args.out is not None else (
-        Path(tempfile.mkdtemp(prefix="porefsi-speed_accuracy-smoke-")) if args.smoke else HERE)
-    (out / "figures").mkdir(parents=True, exist_ok=True)
+    args = parse_args(__doc__, argv, _arguments,
+                      smoke_help="seconds-long version (coarsen 10 runs, coarsen 6 reference)")
+    out = output_dir(args, HERE)
     if args.replot:
         summary = json.loads((out / "results.json").read_text())
         (out / "table.md").write_text(table(summary["runs"]))
@@ -500,7 +483,7 @@ def main(argv=None) -> int:
                "n_eval_points": int(len(ref["points"])), "reference": meta, "tolerances": {"err": TOL_ERR,
                                                                                           "time": TOL_TIME},
                "recommendation": rec, "runs": rows}
-    (out / "results.json").write_text(json.dumps(summary, indent=1, default=float))
+    write_results(out / "results.json", summary)
     (out / "table.md").write_text(table(rows))
     plot(rows, ref, out / "figures" / "speed_accuracy.png")
     print(json.dumps(rec, indent=1, default=float))

@@ -22,11 +22,8 @@ Usage: python cases/strain_rate/run.py [--smoke] [--out DIR] [--serial | --sched
 
 from __future__ import annotations
 
-import argparse
 import csv
-import json
 import sys
-import tempfile
 import time
 import types
 from pathlib import Path
@@ -34,26 +31,16 @@ from pathlib import Path
 import meshio
 import numpy as np
 
-from porefsi import plot
-from porefsi.case.config import load_case, smoke_case
-from porefsi.coupling.problem import build_problem
-from porefsi.io.results import read_pore_steps
+from porefsi import MILLIDARCY as MD
+from porefsi import load_case, plot, problem_from_case, read_pore_steps, smoke_case
 from porefsi.sweep import load_sweep, run_sweep, sweep_from_dict
 
-HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import output_dir, parse_args, pyplot, sweep_arguments, write_results  # noqa: E402
 
-MD = 9.869233e-16  # m^2 per millidarcy
+HERE = Path(__file__).resolve().parent
 RATES = (0.0, 2.8e-5, 8.0e-5, 6.235e-4)  # 1/s
 PSD_TIMES = (1.0, 4.0, 5.0, 8.0, 10.0, 14.0, 20.0)  # s (paper figure 13 and the end)
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def load_run(rec: dict, folder: Path) -> dict:
@@ -92,7 +79,7 @@ def pick_nodes(mesh, length: float) -> list[int]:
 
 
 def figures(runs: list[dict], problem, nodes: list[int], fig_dir: Path) -> list[str]:
-    plt = _plt()
+    plt = pyplot()
     fig_dir.mkdir(parents=True, exist_ok=True)
     made = []
     # fig. 11: displacement at two nodes
@@ -183,16 +170,8 @@ def figures(runs: list[dict], problem, nodes: list[int], fig_dir: Path) -> list[
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps)")
-    ap.add_argument("--out", type=Path, default=None, help="output directory (default: this folder)")
-    where = ap.add_mutually_exclusive_group()
-    where.add_argument("--serial", action="store_true", help="run the members in this process (default with --smoke)")
-    where.add_argument("--scheduler", default=None, help="address of a running Dask scheduler")
-    ap.add_argument("--resume", action="store_true", help="continue the sweep in OUT/runs (default: run it afresh)")
-    args = ap.parse_args(argv)
-    out = args.out or (Path(tempfile.mkdtemp(prefix="porefsi-strain_rate-")) if args.smoke else HERE)
-    out.mkdir(parents=True, exist_ok=True)
+    args = parse_args(__doc__, argv, sweep_arguments)
+    out = output_dir(args, HERE)
     t0 = time.perf_counter()
     case = load_case(HERE / "case.toml")
     if args.smoke:
@@ -204,7 +183,7 @@ def main(argv=None) -> int:
     if failed:
         raise SystemExit(f"strain_rate: members {failed} failed; see {res.table}")
     runs = [load_run(r, out / "runs" / m.name) for m, r in zip(sweep.members, res.records, strict=True)]
-    problem = build_problem(case)
+    problem = problem_from_case(case)
     nodes = pick_nodes(problem.mesh, problem.image.extent[2])
     made = figures(runs, problem, nodes, out / "figures")
     per_rate = []
@@ -242,7 +221,7 @@ def main(argv=None) -> int:
         "sweep_table": str(res.table.relative_to(out)),
         "wall_s": time.perf_counter() - t0,
     }
-    (out / "results.json").write_text(json.dumps(res, indent=1))
+    write_results(out / "results.json", res)
     for r in per_rate:
         print(f"rate {r['strain_rate_per_s']:g}: strain {r['final_strain']:.4g}, k {r['permeability_initial_mD']:.0f}"
               f" -> {r['permeability_final_mD']:.1f} mD ({100 * r['permeability_change']:+.2f} %), mean r "

@@ -19,18 +19,17 @@ Usage: ``python cases/test_points/run.py [--smoke] [--out DIR]``.
 
 from __future__ import annotations
 
-import argparse
-import json
-import tempfile
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from porefsi.case.config import load_case, smoke_case
-from porefsi.coupling.loop import CoupledRun
-from porefsi.coupling.problem import build_problem
-from porefsi.flow.invasion import invasion_percolation
+from porefsi import CoupledRun, load_case, problem_from_case, smoke_case
+from porefsi.flow import invasion_percolation
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import output_dir, parse_args, pyplot, write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 N_FULL = [100, 200, 400, 600, 800, 1000]
@@ -40,21 +39,8 @@ N_SMOKE = [100, 200]
 PAPER = {"pc_shift_early_Pa": 13.5e3, "n_test_points_chosen": 800, "range": [100, 1000]}
 
 
-def parse_args(argv=None) -> argparse.Namespace:
-    """Command line: ``--smoke``, ``--out DIR``."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps, N = 100, 200)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="where figures/ and results.json go (default: this folder; with --smoke a temporary one)")
-    return p.parse_args(argv)
+SMOKE_HELP = "seconds-long version (coarse mesh, 2 steps, N = 100, 200)"
 
-
-def output_dir(args: argparse.Namespace, name: str) -> Path:
-    """The --out folder, defaulting to the case folder (full) or a fresh temporary folder (smoke)."""
-    out = args.out if args.out is not None else (
-        Path(tempfile.mkdtemp(prefix=f"porefsi-{name}-smoke-")) if args.smoke else HERE)
-    (out / "figures").mkdir(parents=True, exist_ok=True)
-    return out
 
 
 def _rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -65,7 +51,7 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
 def run_one(case) -> dict:
     """One coupled run; returns its time series, final fields and timings."""
     t0 = time.perf_counter()
-    prob = build_problem(case)
+    prob = problem_from_case(case)
     t_setup = time.perf_counter() - t0
     run = CoupledRun(prob)
     rows = [run.initial_record().row]
@@ -88,12 +74,12 @@ def run_one(case) -> dict:
 
 def main(argv=None) -> dict:
     """Sweep N, draw the figure, write ``results.json``; return the results."""
-    args = parse_args(argv)
+    args = parse_args(__doc__, argv, smoke_help=SMOKE_HELP)
     base = load_case(HERE / "case.toml")
     ns = N_SMOKE if args.smoke else N_FULL
     if args.smoke:
         base = smoke_case(base)
-    out = output_dir(args, "test_points")
+    out = output_dir(args, HERE)
     # Warm-up (not timed): first-use costs (numba cache loading, imports) would otherwise be
     # charged to the first setting.
     run_one(smoke_case(base).replace(drainage={"t_end": base.coupling.exchange_dt}))
@@ -107,7 +93,7 @@ def main(argv=None) -> dict:
     traction = run_one(base.replace(interface={"method": "traction"}))
     # Sampling noise: the same N with seed 1, applied to the same final pressures.
     for n in ns:
-        prob1 = build_problem(base.replace(interface={"n_test_points": n, "seed": base.interface.seed + 1}))
+        prob1 = problem_from_case(base.replace(interface={"n_test_points": n, "seed": base.interface.seed + 1}))
         runs[n]["F_seed1_rel"] = _rel(prob1.interface.nodal_forces(runs[n]["P"]), runs[n]["F"])
     table = []
     for n in ns:
@@ -136,10 +122,7 @@ def main(argv=None) -> dict:
     ip = invasion_percolation(prob.network, prob.fluids, axis=base.image.axis)
     ip_sw, ip_pc = ip.pc_curve()
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(1, 3, figsize=(15, 4.3))
     ax[0].plot(ip_sw, ip_pc * 1e-3, "k-", lw=1, label="quasi-static IP (same network)")
@@ -193,7 +176,7 @@ def main(argv=None) -> dict:
         "final_sw": float(ref["sw"][-1]), "pc_range_Pa": [float(ref["pc"][1:].min()), float(ref["pc"].max())],
         "paper": PAPER, "figures": [str(fig_path.relative_to(out))],
     }
-    (out / "results.json").write_text(json.dumps(results, indent=1) + "\n", encoding="utf-8")
+    write_results(out / "results.json", results)
     worst = max(row["pc_max_abs_diff_Pa"] for row in table)
     print(f"test_points: max Pc difference over N = {worst:.3g} Pa (paper: ~13.5 kPa); force field "
           f"{table[0]['force_rel_diff_vs_ref']:.3g} rel. at N = {ns[0]}; seed-noise slope {slope} -> {out}")

@@ -19,17 +19,16 @@ Usage: ``python cases/tolerance/run.py [--smoke] [--out DIR]``.
 
 from __future__ import annotations
 
-import argparse
-import json
-import tempfile
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from porefsi.case.config import load_case, smoke_case
-from porefsi.coupling.loop import CoupledRun
-from porefsi.coupling.problem import build_problem
+from porefsi import CoupledRun, load_case, problem_from_case, smoke_case
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import output_dir, parse_args, pyplot, write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 EPS_FULL = [0.0, 2.5e-6, 5e-6, 1e-5, 2e-5, 4e-5, 8e-5]  # m; 8e-5 is the value of the paper's figure 11
@@ -39,27 +38,14 @@ EPS_SMOKE = [0.0, 2e-5]
 PAPER = {"eps_figure_11": 8e-5, "n_test_points": 800, "n_nodes_shown": 2}
 
 
-def parse_args(argv=None) -> argparse.Namespace:
-    """Command line: ``--smoke``, ``--out DIR``."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--smoke", action="store_true", help="seconds-long version (coarse mesh, 2 steps, 2 values)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="where figures/ and results.json go (default: this folder; with --smoke a temporary one)")
-    return p.parse_args(argv)
+SMOKE_HELP = "seconds-long version (coarse mesh, 2 steps, 2 values)"
 
-
-def output_dir(args: argparse.Namespace, name: str) -> Path:
-    """The --out folder, defaulting to the case folder (full) or a fresh temporary folder (smoke)."""
-    out = args.out if args.out is not None else (
-        Path(tempfile.mkdtemp(prefix=f"porefsi-{name}-smoke-")) if args.smoke else HERE)
-    (out / "figures").mkdir(parents=True, exist_ok=True)
-    return out
 
 
 def run_one(case) -> dict:
     """One coupled run; the final displacement/force fields and interface statistics."""
     t0 = time.perf_counter()
-    prob = build_problem(case)
+    prob = problem_from_case(case)
     run = CoupledRun(prob)
     last = None
     for rec in run.steps():
@@ -92,11 +78,11 @@ def pick_nodes(U: np.ndarray, points: np.ndarray, extent) -> tuple[int, int]:
 
 def main(argv=None) -> dict:
     """Sweep ε, draw the figure, write ``results.json``; return the results."""
-    args = parse_args(argv)
+    args = parse_args(__doc__, argv, smoke_help=SMOKE_HELP)
     base = load_case(HERE / "case.toml")
     if args.smoke:
         base = smoke_case(base)
-    out = output_dir(args, "tolerance")
+    out = output_dir(args, HERE)
     ref = run_one(base.replace(interface={"tolerance": None}))
     a, b = pick_nodes(ref["U"], ref["points"], ref["extent"])
     print(f"  reference eps = 0.5 r_i: max |u| = {ref['max_displacement_m']:.4e} m, nodes A = {a}, B = {b}", flush=True)
@@ -117,10 +103,7 @@ def main(argv=None) -> dict:
                                         "resultant_ratio", "total_force_N", "interface_seconds", "wall_seconds",
                                         "mean_pore_radius_m", "n_pores", "n_nodes", "node_spacing_m")}}
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     e_um = np.array([row["eps_m"] for row in table]) * 1e6
     eref = 0.5 * ref["mean_pore_radius_m"] * 1e6
@@ -166,7 +149,7 @@ def main(argv=None) -> dict:
         "nodes": {"A": a, "B": b, "A_xyz_m": ref["points"][a].tolist(), "B_xyz_m": ref["points"][b].tolist()},
         "reference": reference, "table": table, "paper": PAPER, "figures": [str(fig_path.relative_to(out))],
     }
-    (out / "results.json").write_text(json.dumps(results, indent=1) + "\n", encoding="utf-8")
+    write_results(out / "results.json", results)
     print(f"tolerance: |u_A| from {table[0]['u_node_A_m']:.3e} (eps = {eps_list[0]:g}) to "
           f"{table[-1]['u_node_A_m']:.3e} m (eps = {eps_list[-1]:g}); reference {reference['u_node_A_m']:.3e} m "
           f"-> {out}")

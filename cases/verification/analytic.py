@@ -68,18 +68,14 @@ def study_lame(n_cells=(16, 20, 24), cavity_fraction: float = 0.2, E: float = 20
     (b = L) and circumscribed (b = sqrt(3) L) clamped spheres (a larger clamped domain is more
     compliant, so the cube's work lies between them), the load-balance errors and wall times.
     """
-    from porefsi.coupling.interface import (
+    from porefsi import SolidModel, VoxelImage, make_material, mesh_solid, solve_static
+    from porefsi.coupling import (
         boundary_facet_normals,
         facet_pores_from_labels,
         hull_interface,
         traction_interface,
     )
-    from porefsi.image import VoxelImage
-    from porefsi.solid.bc import Fixed
-    from porefsi.solid.materials import make_material
-    from porefsi.solid.mesh import mesh_solid
-    from porefsi.solid.model import SolidModel
-    from porefsi.solid.static import solve_static
+    from porefsi.solid import Fixed
 
     out = {k: [] for k in ("n", "a_m", "lame_inscribed_J", "lame_circumscribed_J", "hull_J", "traction_J",
                            "hull_resultant", "traction_resultant", "n_tets", "seconds")}
@@ -123,9 +119,8 @@ def study_lame(n_cells=(16, 20, 24), cavity_fraction: float = 0.2, E: float = 20
 
 def study_washburn(n_pores: int = 25, radius: float = 1e-5, length: float = 2e-3) -> dict:
     """Tube filling: porefsi's pore fill times against Washburn and the two-fluid closed form."""
-    from porefsi.flow.drainage import DrainageSimulator, simulate_drainage
-    from porefsi.flow.fluids import Fluids
-    from porefsi.network.lattice import tube_network
+    from porefsi import DrainageSimulator, Fluids, simulate_drainage
+    from porefsi.network import tube_network
 
     net = tube_network(n_pores, radius, length)
     l = (np.arange(n_pores) + 1) * length / n_pores
@@ -164,10 +159,9 @@ def study_ip_limit(cas=(1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3), shape=(8, 8, 
     by the dynamic run, and the fraction of IP-invaded pores the dynamic run also invades by its own
     breakthrough (set overlap, Jaccard).
     """
-    from porefsi.flow.drainage import DrainageSimulator
-    from porefsi.flow.fluids import Fluids
-    from porefsi.flow.invasion import invasion_percolation
-    from porefsi.network.lattice import lattice_network
+    from porefsi import DrainageSimulator, Fluids
+    from porefsi.flow import invasion_percolation
+    from porefsi.network import lattice_network
 
     fl = Fluids()
     prefix = np.zeros((len(seeds), len(cas)))

@@ -14,11 +14,11 @@
    overwrites it).
    The reference's own error is measured by a P2 check: P2 elements on coarsen 4 (517k dofs, the
    finest P2 mesh within this case's time cap: coarsen 3 would have 1.2 M), half the exchange
-   step (0.5 s), the pore-wall traction integrated against the P2 basis (:func:`p2_consistent_problem`;
-   the library's coupled P2 takes the P1-consistent vertex forces, which for P2 are point loads),
-   quasi-static, AMG-CG; ~20 min CPU and 9.4 GB, cached in ``reference/`` as its field at the
-   reference's nodes (exact P2 interpolation). Every run, the reference included, is compared with
-   it there, each as its finite-element function (:func:`fe_at_points`).
+   step (0.5 s), the pore-wall traction integrated against the P2 basis (what the library's
+   coupled P2 does: ``solid.order = 2`` with the traction interface), quasi-static, AMG-CG;
+   ~20 min CPU and 9.4 GB, cached in ``reference/`` as its field at the reference's nodes (exact
+   P2 interpolation). Every run, the reference included, is compared with it there, each as its
+   finite-element function (:func:`fe_at_points`).
 2. Analytic set (``analytic.py``): Lamé cavity, Washburn, invasion-percolation limit, TDG order.
 
 Usage: python cases/verification/run.py [--smoke] [--out DIR] [--no-cache [{all,reference,p2}]]
@@ -26,27 +26,22 @@ Usage: python cases/verification/run.py [--smoke] [--out DIR] [--no-cache [{all,
 
 from __future__ import annotations
 
-import argparse
-import copy
-import dataclasses
 import hashlib
-import json
 import resource
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
-from porefsi.case.config import case_to_toml, load_case, smoke_case
-from porefsi.coupling.interface import Interface, boundary_facet_normals, facet_pores_from_labels
-from porefsi.coupling.loop import CoupledRun
-from porefsi.coupling.problem import build_problem
-from porefsi.coupling.update import displacement_on_grid
-from porefsi.solid.model import SolidModel
-from porefsi.solid.static import solve_static
+from porefsi import CoupledRun, load_case, problem_from_case, smoke_case, solve_static
+from porefsi.case import case_to_toml
+from porefsi.coupling import displacement_on_grid
+from porefsi.solid import midpoint_nodes
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import git_head, output_dir, parse_args, pyplot, write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -89,15 +84,6 @@ P2_CHECK = ("P2 c4, dt 0.5 s", 4, 0.5, "amg")
 SMOKE_P2_CHECK = ("P2 c10, dt 0.5 s", 10, 0.5, "direct")
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def make_case(base, spec, t_end):
     _, coarsen, method, integ, dt = spec
     return base.replace(solid={"coarsen": coarsen}, interface={"method": method},
@@ -108,7 +94,7 @@ def make_case(base, spec, t_end):
 def run_coupled(case) -> dict:
     """Coupled run to ``case.drainage.t_end``; node grid indices and the final displacement."""
     t0, c0 = time.perf_counter(), time.process_time()
-    p = build_problem(case)
+    p = problem_from_case(case)
     run = CoupledRun(p)
     rec = None
     for rec in run.steps():  # noqa: B007 - the last record is the one compared
@@ -138,7 +124,7 @@ def reference(case, cache: Path | None, refresh: bool = False) -> dict:
                     "code": str(d["code"]) if "code" in d else "unknown"}
     ref = run_coupled(case)
     ref["computed"] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
-    ref["code"] = _git_head()
+    ref["code"] = git_head()
     if cache is not None:
         cache.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(cache, grid=ref["grid"].astype(np.int16), u=ref["u"], t=ref["t"],
@@ -147,94 +133,6 @@ def reference(case, cache: Path | None, refresh: bool = False) -> dict:
                             code=np.array(ref["code"]))
     ref["cached"] = False
     return ref
-
-
-def _git_head() -> str:
-    """The checkout's commit (12 hex digits, '+dirty' with local changes), or 'unknown'."""
-    import subprocess
-
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=HERE, capture_output=True,
-                              text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "porefsi"], cwd=HERE.parent.parent,
-                               capture_output=True, text=True, timeout=10).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return head + ("+dirty" if dirty else "")
-
-
-class LagrangeNodeLoads(SolidModel):
-    """A :class:`SolidModel` whose nodal forces act on every Lagrange node, ``(n_full / 3, 3)``.
-
-    ``SolidModel`` takes nodal forces on the mesh vertices only, which for P1 is the consistent
-    traction load but for P2 is not: a constant traction on a flat triangle has zero P2 vertex
-    weights and puts A/3 on each edge node, so vertex forces become point loads that the P2 field
-    resolves locally. This subclass (used only by the P2 check here) takes the P2-consistent load.
-    """
-
-    def _set_nodal(self, F):
-        if F is not None:
-            F = np.asarray(F, dtype=float)
-            if F.shape != (self.n_full // 3, 3):
-                raise ValueError(f"nodal forces must have shape ({self.n_full // 3}, 3), got {F.shape}")
-        self._nodal = F
-
-    def full_external_force(self, t: float) -> np.ndarray:
-        s = 1.0 if self.load_factor is None else float(self.load_factor(t))
-        f = s * self._traction_vec
-        return f if self._nodal is None else f + self._nodal.reshape(-1)
-
-
-def _half_voxel_keys(p, pts):
-    k = np.rint(2.0 * (np.asarray(pts, float) - p.image.origin) / p.image.voxel_size).astype(np.int64)
-    return (k[:, 0] * 4096 + k[:, 1]) * 4096 + k[:, 2]
-
-
-def _edge_nodes(p, a, b):
-    """Lagrange node of the P2 model at the midpoint of each vertex pair (a[i], b[i])."""
-    keys = _half_voxel_keys(p, p.model.dof_points)
-    order = np.argsort(keys)
-    q = _half_voxel_keys(p, 0.5 * (p.mesh.points[a] + p.mesh.points[b]))
-    pos = np.minimum(np.searchsorted(keys[order], q), len(keys) - 1)
-    if np.any(keys[order][pos] != q):
-        raise RuntimeError("an edge midpoint is not a Lagrange node of the P2 model")
-    return order[pos]
-
-
-def p2_consistent_problem(p):
-    """``p`` (a P2 problem) with the pore-wall traction integrated against the P2 basis.
-
-    The same wall facets and pore owners as :func:`porefsi.coupling.problem.build_interface`;
-    each facet's force -P A n goes in thirds to its three edge nodes (the exact P2 integral of a
-    constant traction on a flat triangle: vertex weights 0). Network, geometric update and wall
-    resultants are those of ``p`` (the resultant per pore is unchanged).
-    """
-    mesh, itf = p.mesh, p.interface
-    facets = mesh.facets_tagged("pore_wall")
-    normals, _ = boundary_facet_normals(mesh.points, mesh.tets, facets)
-    owner = facet_pores_from_labels(mesh.points, facets, normals, p.extraction.labels, p.image.voxel_size,
-                                    p.image.origin, max_steps=max(4, 2 * p.case.solid.coarsen))
-    use = owner >= 0
-    f, pu = facets[use], owner[use]
-    nrm, area = boundary_facet_normals(mesh.points, mesh.tets, f)
-    rows, cols, vals = [], [], []
-    for a, b in ((0, 1), (1, 2), (2, 0)):
-        m = _edge_nodes(p, f[:, a], f[:, b])
-        for k in range(3):
-            rows.append(3 * m + k)
-            cols.append(pu)
-            vals.append(-area * nrm[:, k] / 3.0)
-    import scipy.sparse as sp
-
-    T2 = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                       shape=(p.model.n_full, itf.n_pores))
-    res = np.stack([np.asarray(T2[k::3].sum(axis=0)).ravel() for k in range(3)], axis=1)
-    if not np.allclose(res, itf.wall_vector, rtol=1e-10, atol=1e-12 * float(np.abs(itf.wall_vector).max())):
-        raise RuntimeError("the P2 traction operator's resultants differ from the interface's wall vectors")
-    itf2 = Interface(T2, "traction", itf.wall_area, itf.pore_nodes, 0, itf.seconds, wall_vector=itf.wall_vector)
-    model = copy.copy(p.model)
-    model.__class__ = LagrangeNodeLoads
-    return dataclasses.replace(p, interface=itf2, model=model)
 
 
 _TET_EDGES = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))
@@ -280,7 +178,8 @@ def p2_at_points(p, U_all: np.ndarray, pts_vox: np.ndarray):
     """The P2 field ``U_all`` ((n_full/3, 3) on the Lagrange nodes of ``p``) at points in voxel units
     (:func:`fe_at_points`)."""
     tets = p.mesh.tets
-    edge = np.stack([_edge_nodes(p, tets[:, i], tets[:, j]) for i, j in _TET_EDGES], axis=1)
+    edge = np.stack([midpoint_nodes(p.mesh, p.model.dof_points, tets[:, i], tets[:, j]) for i, j in _TET_EDGES],
+                    axis=1)
     xv = (p.mesh.points - p.image.origin) / p.image.voxel_size
     return fe_at_points(xv, tets, U_all, pts_vox, edge)
 
@@ -296,13 +195,12 @@ def make_p2_case(base, spec, t_end):
 def run_p2_check(case, ref_grid: np.ndarray) -> dict:
     """The P2 check run to ``case.drainage.t_end``, its field at the reference nodes ``ref_grid``.
 
-    Also one static solve at the final pressures with the vertex loads that ``SolidModel`` takes
-    (P1-consistent forces as P2 point loads: what ``solid.order = 2`` does in a coupled run), to
-    show how much the P2-consistent load matters.
+    Also one static solve at the final pressures with the P1-consistent vertex forces as P2 point
+    loads (what ``solid.order = 2`` did in a coupled run before the interface integrated the
+    traction against the P2 basis), to show how much the P2-consistent load matters.
     """
     t0, c0 = time.perf_counter(), time.process_time()
-    p1 = build_problem(case)
-    p = p2_consistent_problem(p1)
+    p = problem_from_case(case)  # P2: the traction interface integrates against the P2 basis
     run = CoupledRun(p)
     rec = None
     n_steps = 0
@@ -316,7 +214,7 @@ def run_p2_check(case, ref_grid: np.ndarray) -> dict:
     # the vertex-load variant at the same pressures
     c1 = time.process_time()
     P = np.nan_to_num(np.asarray(run.sim.state.fluid_pressure, float), nan=0.0)
-    mv = p1.model.with_nodal_forces(p1.interface.nodal_forces(P))
+    mv = p.model.with_nodal_forces(p.interface.vertex_forces(P))
     uv, _ = solve_static(mv, rec.t, u0=run.u, t_prev=rec.t)
     at_ref_v, _ = p2_at_points(p, mv.full_displacement(uv, rec.t).reshape(-1, 3), ref_grid)
     return {"u_at_ref": at_ref, "outside": outside, "u_vertex_load_at_ref": at_ref_v, "t": rec.t,
@@ -345,7 +243,7 @@ def p2_check(case, ref: dict, cache: Path | None, refresh: bool = False) -> dict
             return out | {"cached": True, "computed": str(d["computed"]), "code": str(d["code"])}
     out = run_p2_check(case, ref["grid"])
     out["computed"] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
-    out["code"] = _git_head()
+    out["code"] = git_head()
     if cache is not None:
         cache.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(cache, **{k: out[k] for k in keys}, **{k: out[k] for k in scal}, case_toml=np.array(toml),
@@ -449,7 +347,7 @@ def compare(ref: dict, runs: dict, n_select: int = 12) -> dict:
 
 
 def figures(cmp: dict, ref_spec, lame, wash, ip, tdg, fig_dir: Path, p2: dict | None = None) -> list[str]:
-    plt = _plt()
+    plt = pyplot()
     fig_dir.mkdir(parents=True, exist_ok=True)
     made = []
     ref_label = f"c{ref_spec[1]}, P1, traction, static"
@@ -551,28 +449,15 @@ def figures(cmp: dict, ref_spec, lame, wash, ip, tdg, fig_dir: Path, p2: dict | 
     return [m.name for m in made]
 
 
-def _json(x):
-    if isinstance(x, dict):
-        return {k: _json(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, np.generic):
-        return x.item()
-    return x
+def _arguments(p) -> None:
+    p.add_argument("--no-cache", nargs="?", const="all", default=None, choices=("all", "reference", "p2"),
+                   help="recompute and overwrite the cached runs: all (default), the P1 reference (~75 s CPU) or "
+                        "the P2 check (~20 min CPU, 9.4 GB)")
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--smoke", action="store_true", help="seconds-long version (coarse meshes, 2 steps)")
-    ap.add_argument("--out", type=Path, default=None, help="output directory (default: this folder)")
-    ap.add_argument("--no-cache", nargs="?", const="all", default=None, choices=("all", "reference", "p2"),
-                    help="recompute and overwrite the cached runs: all (default), the P1 reference (~75 s CPU) or "
-                         "the P2 check (~20 min CPU, 9.4 GB)")
-    args = ap.parse_args(argv)
-    out = args.out or (Path(tempfile.mkdtemp(prefix="porefsi-verification-")) if args.smoke else HERE)
-    out.mkdir(parents=True, exist_ok=True)
+    args = parse_args(__doc__, argv, _arguments)
+    out = output_dir(args, HERE)
     t0 = time.perf_counter()
     base = load_case(HERE / "case.toml")
     if args.smoke:
@@ -628,10 +513,10 @@ def main(argv=None) -> int:
         "figures": made,
         "smoke": bool(args.smoke),
         "computed": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-        "code": _git_head(),
+        "code": git_head(),
         "wall_s": time.perf_counter() - t0,
     }
-    (out / "results.json").write_text(json.dumps(_json(res), indent=1))
+    write_results(out / "results.json", res)
     for name, e in cmp["errors"].items():
         print(f"{name:32s} rel. error (shared {e['n_shared_nodes']} nodes) {e['rel_error_shared']:.3f}, all nodes "
               f"{e['rel_error_all_interp']:.3f}, selected {e['rel_error_selected']:.3f}, "

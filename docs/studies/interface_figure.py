@@ -20,8 +20,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 import numpy as np  # noqa: E402
 
-from porefsi.case.config import Case  # noqa: E402
-from porefsi.coupling.problem import build_interface  # noqa: E402
+from porefsi.coupling import HullOptions, TractionOptions  # noqa: E402
 from porefsi.image.voxel_image import VoxelImage  # noqa: E402
 from porefsi.network.extract import extract_network  # noqa: E402
 from porefsi.solid import mesh_solid  # noqa: E402
@@ -54,8 +53,8 @@ def main(out: Path = OUT) -> dict:
     P = np.array([1.0, 1.0])  # Pa: the same pressure in both pores, so the cavity is closed
     stats, forces = {}, {}
     for method in ("hull", "traction"):
-        case = Case().replace(interface={"method": method})
-        itf = build_interface(case, net, ext.labels, mesh, img.voxel_size, img.origin)
+        opts = HullOptions() if method == "hull" else TractionOptions()  # the defaults of a case
+        itf = opts.build(net, ext.labels, mesh, voxel_size=img.voxel_size, origin=img.origin)
         f = itf.nodal_forces(P)
         forces[method] = f
         mag = np.linalg.norm(f, axis=1)

@@ -3,7 +3,7 @@
 Outputs in the run directory:
 
 - ``case.toml``: the resolved case (every key);
-- ``timeseries.csv``: one row per exchange step (:data:`porefsi.coupling.loop.TIMESERIES_COLUMNS`);
+- ``timeseries.csv``: one row per exchange step (:data:`porefsi.coupling.records.TIMESERIES_COLUMNS`);
 - ``summary.json``: headline figures (and ``status``/``error`` if the run failed);
 - ``solid.pvd`` + ``vtk/solid_NNNN.vtu`` (displacement, von Mises, nodal pore force) and
   ``network.pvd`` + ``vtk/network_NNNN.vtp`` (pressure, saturation, radius) at the snapshot times;
@@ -42,17 +42,18 @@ from pathlib import Path
 import numpy as np
 
 from porefsi._version import __version__
-from porefsi.case import _plausible
+from porefsi.case import _outputs as _out
 from porefsi.case import _rundir as _rd
 from porefsi.case.config import Case, case_to_dict, case_to_toml
-from porefsi.coupling.loop import TIMESERIES_COLUMNS, CoupledRun, ExchangeRecord
-from porefsi.coupling.problem import build_problem
+from porefsi.case.problem import problem_from_case
+from porefsi.coupling.loop import CoupledRun
+from porefsi.coupling.records import TIMESERIES_COLUMNS, ExchangeRecord
 from porefsi.errors import InputError, PorefsiError
+from porefsi.flow import plausible as _plausible
 from porefsi.image.io import check_voxel_size
 from porefsi.io import interrupt, results, rundir
-from porefsi.io.network_vtk import write_network_vtp
 
-__all__ = ["run_case", "RunOutput"]
+__all__ = ["run_case", "RunOutput", "RunControl"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,6 +64,55 @@ class RunOutput:
     directory: Path
     timeseries: dict
     note: str = ""  # e.g. that a resumed run was already complete
+
+
+@dataclasses.dataclass(frozen=True)
+class RunControl:
+    """How :func:`run_case` runs a case (its keyword options; the case itself says what is run).
+
+    Attributes
+    ----------
+    resume : bool
+        Continue from ``out/checkpoint.npz`` (the case must be the one saved in ``out/case.toml``).
+        Resuming a completed run changes nothing and returns its summary.
+    overwrite : bool
+        A fresh run into a directory that holds a run (a checkpoint or ``summary.json``) replaces
+        that run's results; without it such a run is refused.
+    force : bool
+        Run a case past the size limits (:data:`porefsi.case._rundir.MAX_STEPS` exchange steps,
+        :data:`porefsi.case._rundir.MAX_OUTPUT_BYTES` of outputs, the disk's free space).
+    progress : bool, optional
+        Progress on stderr: True a redrawn bar, False none; default a bar when stderr is a
+        terminal, else one line per exchange step (batch logs).
+    figures : bool, optional
+        Override ``case.output.figures``.
+    stop_after : int, optional
+        Stop after this many exchange steps of this call (for tests of interrupted runs).
+    reuse_extractions : bool, default True
+        Re-extraction mode: serve the extraction of a voxel image seen before from a digest cache
+        (:class:`~porefsi.coupling.network_step.ExtractionCache`); False computes every
+        re-extraction, the paper's cost, with the same results (for cost studies).
+    """
+
+    resume: bool = False
+    overwrite: bool = False
+    force: bool = False
+    progress: bool | None = None
+    figures: bool | None = None
+    stop_after: int | None = None
+    reuse_extractions: bool = True
+
+
+@dataclasses.dataclass
+class _Sofar:
+    """A run in progress: the loop, its rows, snapshots and ParaView series, the set-up times."""
+
+    run: CoupledRun | None = None
+    rows: list = dataclasses.field(default_factory=list)
+    snapshots: list = dataclasses.field(default_factory=list)
+    series: dict = dataclasses.field(default_factory=dict)
+    setup_seconds: dict = dataclasses.field(default_factory=dict)
+    setup_cpu: dict = dataclasses.field(default_factory=dict)
 
 
 class _Progress:
@@ -112,88 +162,8 @@ class _Progress:
 
 #: Least wall seconds between two progress lines of a run whose stderr is not a terminal.
 LINE_SECONDS = 1.0
-#: Number of pore-size bins of ``pores/psd_NNNN.csv``.
-PSD_BINS = 30
-#: The bins span [0, PSD_SPAN x the largest pore radius of the reference network].
-PSD_SPAN = 1.5
-
-
-def _psd_edges(net) -> np.ndarray:
-    r_max = float(np.max(net.pore_radius)) if net.n_pores else 1.0
-    return np.linspace(0.0, PSD_SPAN * r_max, PSD_BINS + 1)
-
-
-def _write_pores(out: Path, rec: ExchangeRecord, edges: np.ndarray) -> None:
-    """``pores/step_NNNN.npz`` (per-pore arrays) and ``pores/psd_NNNN.csv`` of one exchange step."""
-    net, f = rec.network, rec.flow
-    results.write_npz(out / "pores" / f"step_{rec.step:04d}.npz", {
-        "step": np.int64(rec.step), "time_s": np.float64(rec.t),
-        "pore_pressure_Pa": np.asarray(f.fluid_pressure, float), "nw_saturation": np.asarray(f.nw_saturation, float),
-        "pore_radius_m": net.pore_radius, "pore_volume_m3": net.pore_volume, "pore_coords_m": net.pore_coords})
-    r = np.minimum(net.pore_radius, edges[-1])  # larger pores are counted in the last bin
-    count, _ = np.histogram(r, bins=edges)
-    vol, _ = np.histogram(r, bins=edges, weights=net.pore_volume)
-    n = len(count)
-    results.write_csv(out / "pores" / f"psd_{rec.step:04d}.csv", {
-        "step": [rec.step] * n, "time_s": [rec.t] * n, "radius_lo_m": edges[:-1].tolist(),
-        "radius_hi_m": edges[1:].tolist(), "n_pores": count.tolist(), "pore_volume_m3": vol.tolist()})
-
-
-def _snapshot_due(case: Case, t0: float, t1: float, last: bool) -> bool:
-    return last or any(t0 < s <= t1 + 1e-12 for s in case.output.snapshot_times)
-
-
-def _write_snapshot(out: Path, rec: ExchangeRecord, run: CoupledRun, series: dict) -> None:
-    vtk = out / "vtk"
-    vtk.mkdir(exist_ok=True)
-    mesh = run.problem.mesh
-    solid_file = vtk / f"solid_{rec.step:04d}.vtu"
-    mesh.write_vtu(solid_file, point_data={
-        "displacement": rec.displacement, "von_mises": rec.von_mises, "pore_force": rec.nodal_force})
-    net = rec.network
-    f = rec.flow
-    net_file = vtk / f"network_{rec.step:04d}.vtp"
-    write_network_vtp(net, net_file, point_data={
-        "pressure": np.nan_to_num(f.fluid_pressure), "nw_saturation": f.nw_saturation,
-        "pore_state": f.pore_state.astype(float)})
-    series["solid"].add(rec.t, solid_file)
-    series["network"].add(rec.t, net_file)
-
-
-def _figures(out: Path, ts: dict, snapshots: list, run: CoupledRun, progress: bool) -> list[str]:
-    from porefsi import plot
-
-    fig = out / "figures"
-    fig.mkdir(exist_ok=True)
-    made = [plot.plot_timeseries(ts, fig / "timeseries.png", title=run.problem.case.name)]
-    made.append(plot.plot_psd([(s["t"], s["radius"]) for s in snapshots], fig / "pore_size_distribution.png"))
-    net0 = run.problem.network
-    for s in snapshots:
-        tag = f"t{s['t']:07.3f}s".replace(".", "_")
-        made.append(plot.render_network(s["coords"], s["radius"], net0.throat_conns, 1.0 - s["nw_saturation"],
-                                        fig / f"drainage_{tag}.png", label="wetting saturation", clim=(0, 1),
-                                        fade_above=0.999))
-        # Colour scales stop at the 99th percentile: the extremes sit at a few nodes next to loaded pores.
-        mag = np.linalg.norm(s["displacement"], axis=1) * 1e9
-        made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, mag,
-                                      fig / f"displacement_{tag}.png", label="|u| (nm)", cut="y",
-                                      clim=(0.0, max(float(np.percentile(mag, 99)), 1e-30))))
-        fn = np.linalg.norm(s["force"], axis=1) * 1e9
-        made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, fn,
-                                      fig / f"pore_force_{tag}.png", label="|pore force| (nN)", cmap="inferno",
-                                      cut="y", clim=(0.0, max(float(np.percentile(fn[fn > 0], 99)) if np.any(fn > 0)
-                                                          else 0.0, 1e-30))))
-        vm = s["von_mises"] * 1e-6
-        made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, vm,
-                                      fig / f"von_mises_{tag}.png", label="von Mises (MPa)", cmap="magma", cut="y",
-                                      clim=(0.0, max(float(np.percentile(vm, 99)), 1e-30))))
-    return [str(p.relative_to(out)) for p in made]
-
-
-def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False, overwrite: bool = False,
-             force: bool = False, progress: bool | None = None, figures: bool | None = None,
-             on_record: Callable[[ExchangeRecord], None] | None = None, stop_after: int | None = None,
-             reuse_extractions: bool = True) -> RunOutput:
+def run_case(case: Case, out: str | Path | None = None, *, on_record: Callable[[ExchangeRecord], None] | None = None,
+             **control) -> RunOutput:
     """Run ``case`` and write its results to ``out`` (default ``case.output.dir``).
 
     Parameters
@@ -201,28 +171,11 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     case : Case
     out : path, optional
         Run directory.
-    resume : bool
-        Continue from ``out/checkpoint.npz`` (the case must be the one saved in ``out/case.toml``).
-        Resuming a completed run changes nothing and returns its summary.
-    overwrite : bool
-        A fresh run into a directory that holds a run (a checkpoint or ``summary.json``) replaces
-        that run's results; without it such a run is refused.
-    force : bool
-        Run a case past the size limits (:data:`porefsi.case._rundir.MAX_STEPS` exchange steps,
-        :data:`porefsi.case._rundir.MAX_OUTPUT_BYTES` of outputs, the disk's free space).
-    progress : bool, optional
-        Progress on stderr: True a redrawn bar, False none; default a bar when stderr is a
-        terminal, else one line per exchange step (batch logs).
-    figures : bool, optional
-        Override ``case.output.figures``.
     on_record : callable, optional
-        Called with every :class:`~porefsi.coupling.loop.ExchangeRecord` (e.g. by case scripts).
-    stop_after : int, optional
-        Stop after this many exchange steps of this call (for tests of interrupted runs).
-    reuse_extractions : bool, default True
-        Re-extraction mode: serve the extraction of a voxel image seen before from a digest cache
-        (:class:`~porefsi.coupling.loop.CoupledRun`); False computes every re-extraction, the
-        paper's cost, with the same results (for cost studies).
+        Called with every :class:`~porefsi.coupling.records.ExchangeRecord` (e.g. by case scripts).
+    **control
+        :class:`RunControl` options: ``resume``, ``overwrite``, ``force``, ``progress``,
+        ``figures``, ``stop_after``, ``reuse_extractions``.
 
     Raises
     ------
@@ -250,28 +203,29 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
     counterpart of the wall-time ``seconds_by_stage`` (set-up stages, then the loop's, cumulative
     over a resumed run like the totals).
     """
+    ctl = RunControl(**control)
     clock = _RunClock(time.perf_counter(), time.process_time())
     out = rundir.check_output_dir(Path(out if out is not None else case.output.dir))
     # 1. read and validate everything; nothing in ``out`` changes before the lock below
     saved = None
-    if resume:
+    if ctl.resume:
         saved = _rd.load_resume(out, case)
         done = _rd.read_completed(out, case, saved[1])
         if done is not None:  # a completed run: nothing to do, nothing to change
             return RunOutput(done[0], out, done[1], note=f"{out} already holds the completed run; nothing to do")
     else:
-        _rd.refuse_existing(out, overwrite)
-        _rd.check_steps(case, force)
-    problem = build_problem(case)
+        _rd.refuse_existing(out, ctl.overwrite)
+        _rd.check_steps(case, ctl.force)
+    problem = problem_from_case(case)
     _plausible.warn_injection_pressure(problem.network, case.image.axis, case.drainage.rate, case.fluids.mu_n)
     if not case.image.path and case.image.voxel_size is not None:  # a file's is checked when it is read
         check_voxel_size(case.image.voxel_size, "image.voxel_size")
-    state = _restore(problem, out, saved, reuse_extractions) if saved else None
-    _rd.check_output_volume(out, case, problem, force or resume)
+    sofar = _restore(problem, out, saved, ctl.reuse_extractions) if saved else None
+    _rd.check_output_volume(out, case, problem, ctl.force or ctl.resume)
     # 2. the directory is ours: clear what goes, then run
     with rundir.lock(out), rundir.output_errors(out):
         if saved is None:
-            _rd.refuse_existing(out, overwrite)  # again: a run may have finished there meanwhile
+            _rd.refuse_existing(out, ctl.overwrite)  # again: a run may have finished there meanwhile
             _rd.clear_outputs(out)
         else:
             clock.wall_before = float(saved[1].get("wall_seconds", 0.0))
@@ -279,12 +233,14 @@ def run_case(case: Case, out: str | Path | None = None, *, resume: bool = False,
             # the steps after the checkpoint are redone: their files go (they are rewritten)
             _rd.clear_outputs(out, after_step=int(saved[1]["step_index"]))
         results.atomic_write_text(out / "case.toml", case_to_toml(case))
-        opts = dict(progress=progress, figures=case.output.figures if figures is None else figures,
-                    on_record=on_record, stop_after=stop_after, reuse_extractions=reuse_extractions)
-        return _execute(case, out, problem, state, clock, opts)
+        if ctl.figures is None:
+            ctl = dataclasses.replace(ctl, figures=case.output.figures)
+        if sofar is None:
+            sofar = _fresh(problem, out)
+        return _execute(case, out, problem, sofar, clock, ctl, on_record)
 
 
-def _restore(problem, out: Path, saved: tuple[dict, dict], reuse_extractions: bool) -> dict:
+def _restore(problem, out: Path, saved: tuple[dict, dict], reuse_extractions: bool) -> _Sofar:
     """The run state of a checkpoint, validated against ``problem`` (reads only)."""
     arrays, meta = saved
     ckpt = out / _rd.CHECKPOINT
@@ -305,59 +261,71 @@ def _restore(problem, out: Path, saved: tuple[dict, dict], reuse_extractions: bo
         except (OSError, ValueError, TypeError, ET.ParseError) as exc:
             raise InputError(f"{out / f'{k}.pvd'} is damaged ({exc}); delete it to resume without the earlier "
                              "snapshots in the series, or run again with --overwrite") from None
-    return {"run": run, "rows": rows, "snapshots": snapshots, "series": series, "setup": setup}
+    return _Sofar(run, rows, snapshots, series, *setup)
 
 
-def _execute(case: Case, out: Path, problem, state: dict | None, clock: _RunClock, opts: dict) -> RunOutput:
+def _fresh(problem, out: Path) -> _Sofar:
+    """A fresh run's state (before its first step; the ParaView series not yet written)."""
+    return _Sofar(None, [], [], {k: results.PvdSeries(out / f"{k}.pvd") for k in ("solid", "network")},
+                  dict(problem.seconds), dict(problem.cpu_seconds))
+
+
+def _start(case: Case, out: Path, problem, sofar: _Sofar, clock: _RunClock, ctl: RunControl, edges) -> None:
+    """A restored run: its series cut to the checkpoint; a fresh one: made, and its step 0 written."""
+    clock.setup_cpu = sofar.setup_cpu
+    if sofar.run is not None:
+        for s in sofar.series.values():
+            s.truncate(sofar.run.t)
+        return
+    sofar.run = CoupledRun(problem, reuse_extractions=ctl.reuse_extractions)
+    rec0 = sofar.run.initial_record()
+    sofar.rows.append(rec0.row)
+    _out.write_pores(out, rec0, edges)
+    if case.output.vtk:
+        _out.write_snapshot(out, rec0, sofar.run, sofar.series)
+    sofar.snapshots.append(_out.snapshot(rec0))
+
+
+def _after_step(case: Case, out: Path, sofar: _Sofar, rec: ExchangeRecord, edges) -> None:
+    """The files of one exchange step: pores, snapshot when due, the time series so far."""
+    run = sofar.run
+    sofar.rows.append(rec.row)
+    _out.write_pores(out, rec, edges)
+    if _out.snapshot_due(case, sofar.rows[-2]["time_s"], rec.t, run.step_index == run.n_steps):
+        if case.output.vtk:
+            _out.write_snapshot(out, rec, run, sofar.series)
+        sofar.snapshots.append(_out.snapshot(rec))
+    results.write_csv(out / "timeseries.csv", _columns(sofar.rows))
+
+
+def _execute(case: Case, out: Path, problem, sofar: _Sofar, clock: _RunClock, ctl: RunControl,
+             on_record) -> RunOutput:
     """The loop of :func:`run_case` in a validated, locked, cleared directory."""
-    progress, on_record, stop_after = opts["progress"], opts["on_record"], opts["stop_after"]
     ckpt = out / _rd.CHECKPOINT
-    run, rows, setup_seconds = None, [], {}
     status, error = "completed", None
     try:
-        edges = _psd_edges(problem.network)  # fixed pore-size bins of the whole run
-        if state is not None:
-            run, rows, snapshots, series = state["run"], state["rows"], state["snapshots"], state["series"]
-            for s in series.values():
-                s.truncate(run.t)
-            setup_seconds, clock.setup_cpu = state["setup"]
-        else:
-            run = CoupledRun(problem, reuse_extractions=opts["reuse_extractions"])
-            snapshots = []
-            series = {k: results.PvdSeries(out / f"{k}.pvd") for k in ("solid", "network")}
-            setup_seconds = dict(problem.seconds)
-            clock.setup_cpu = dict(problem.cpu_seconds)
-            rec0 = run.initial_record()
-            rows.append(rec0.row)
-            _write_pores(out, rec0, edges)
-            if case.output.vtk:
-                _write_snapshot(out, rec0, run, series)
-            snapshots.append(_snapshot(rec0))
+        edges = _out.psd_edges(problem.network)  # fixed pore-size bins of the whole run
+        _start(case, out, problem, sofar, clock, ctl, edges)
+        run = sofar.run
         tty = sys.stderr.isatty()
-        bar = _Progress(run.n_steps, progress is not False, start=run.step_index, lines=progress is None and not tty)
+        bar = _Progress(run.n_steps, ctl.progress is not False, start=run.step_index,
+                        lines=ctl.progress is None and not tty)
         n_done = 0
         with interrupt.deferred() as signalled:  # Ctrl-C / SIGTERM: finish the step, save, stop
             for rec in run.steps():
-                rows.append(rec.row)
-                _write_pores(out, rec, edges)
-                t_prev = rows[-2]["time_s"]
-                last = run.step_index == run.n_steps
-                if _snapshot_due(case, t_prev, rec.t, last):
-                    if case.output.vtk:
-                        _write_snapshot(out, rec, run, series)
-                    snapshots.append(_snapshot(rec))
-                results.write_csv(out / "timeseries.csv", _columns(rows))
+                _after_step(case, out, sofar, rec, edges)
                 if on_record is not None:
                     on_record(rec)
+                last = run.step_index == run.n_steps
                 if run.step_index % case.output.checkpoint_every == 0 or last or signalled():
-                    _save(ckpt, run, case, rows, snapshots, setup_seconds, clock)
+                    _save(ckpt, case, sofar, clock)
                 bar.update(run.step_index, rec.t, f"Sw={rec.row['sw']:.3f}")
                 n_done += 1
                 if signalled() and not last:
                     raise KeyboardInterrupt(
                         f"{interrupt.SIGNAL_NAMES.get(signalled(), 'a signal')} at exchange step {run.step_index} of "
                         f"{run.n_steps}; saved to {ckpt}: continue with {_rd.resume_command(out)}")
-                if stop_after is not None and n_done >= stop_after:
+                if ctl.stop_after is not None and n_done >= ctl.stop_after:
                     status = "interrupted"
                     break
     except BaseException as exc:
@@ -366,22 +334,13 @@ def _execute(case: Case, out: Path, problem, state: dict | None, clock: _RunCloc
         status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
         error = f"{type(exc).__name__}: {exc}"
         with contextlib.suppress(Exception):  # never hide the original error behind a write error
-            _write_summary(out, case, run, rows, setup_seconds, status, error, [], clock)
+            _write_summary(out, case, sofar, clock, status, error, [])
         raise
-    ts = _columns(rows)
+    ts = _columns(sofar.rows)
     _plausible.warn_pressure_reached(max((p for p in ts["inlet_pressure_Pa"] if math.isfinite(p)), default=math.nan))
-    made = _figures(out, ts, snapshots, run, progress) if (opts["figures"] and status == "completed") else []
-    summary = _write_summary(out, case, run, rows, setup_seconds, status, error, made, clock)
+    made = _out.figures(out, ts, sofar.snapshots, run, case.name) if (ctl.figures and status == "completed") else []
+    summary = _write_summary(out, case, sofar, clock, status, error, made)
     return RunOutput(summary, out, ts)
-
-
-def _snapshot(rec: ExchangeRecord) -> dict:
-    return {"t": rec.t, "step": rec.step, "coords": rec.network.pore_coords.copy(),
-            "radius": rec.network.pore_radius.copy(), "nw_saturation": np.asarray(rec.flow.nw_saturation).copy(),
-            "displacement": rec.displacement, "von_mises": rec.von_mises, "force": rec.nodal_force}
-
-
-_SNAP_KEYS = ("coords", "radius", "nw_saturation", "displacement", "von_mises", "force")
 
 
 @dataclasses.dataclass
@@ -401,28 +360,28 @@ class _RunClock:
         return time.process_time() - self.cpu_start
 
 
-def _save(path, run: CoupledRun, case: Case, rows, snapshots, setup_seconds, clock: _RunClock) -> None:
-    arrays, meta = run.checkpoint()
-    for i, s in enumerate(snapshots):
-        for k in _SNAP_KEYS:
+def _save(path, case: Case, sofar: _Sofar, clock: _RunClock) -> None:
+    arrays, meta = sofar.run.checkpoint()
+    for i, s in enumerate(sofar.snapshots):
+        for k in _out.SNAP_KEYS:
             arrays[f"snap{i}_{k}"] = s[k]
-    meta.update(case=case_to_dict(case), rows=rows, setup_seconds=setup_seconds,
-                snapshots=[{"t": s["t"], "step": s["step"]} for s in snapshots], version=__version__,
+    meta.update(case=case_to_dict(case), rows=sofar.rows, setup_seconds=sofar.setup_seconds,
+                snapshots=[{"t": s["t"], "step": s["step"]} for s in sofar.snapshots], version=__version__,
                 wall_seconds=clock.wall_before + clock.wall_this_process(), setup_cpu_seconds=clock.setup_cpu,
                 process_cpu_seconds=clock.cpu_before + clock.cpu_this_process())
     results.save_checkpoint(path, arrays, meta)
 
 
 def _load_snapshots(arrays, meta) -> list:
-    return [{**s, **{k: arrays[f"snap{i}_{k}"] for k in _SNAP_KEYS}} for i, s in enumerate(meta["snapshots"])]
+    return [{**s, **{k: arrays[f"snap{i}_{k}"] for k in _out.SNAP_KEYS}} for i, s in enumerate(meta["snapshots"])]
 
 
 def _columns(rows: list[dict]) -> dict:
     return {k: [r[k] for r in rows] for k in TIMESERIES_COLUMNS}
 
 
-def _write_summary(out, case, run: CoupledRun | None, rows, setup_seconds, status, error, figures,
-                   clock: _RunClock) -> dict:
+def _write_summary(out, case, sofar: _Sofar, clock: _RunClock, status, error, figures) -> dict:
+    run, rows, setup_seconds = sofar.run, sofar.rows, sofar.setup_seconds
     this_process = clock.wall_this_process()
     wall_seconds = clock.wall_before + this_process
     cpu_this = clock.cpu_this_process()

@@ -5,11 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from pathlib import Path
-
-import numpy as np
 
 from porefsi.errors import InputError
+from porefsi.io.results import jsonable as to_jsonable  # the one JSON converter
 
 __all__ = [
     "emit",
@@ -24,26 +22,6 @@ __all__ = [
 
 class _ArgumentError(InputError, argparse.ArgumentTypeError):
     """An :class:`InputError` that argparse also reports with its own message."""
-
-
-def to_jsonable(value):
-    """Convert numpy scalars/arrays, paths and non-finite floats into JSON-safe Python values.
-
-    Non-finite floats become ``None`` (JSON has no NaN/inf).
-    """
-    if isinstance(value, dict):
-        return {str(k): to_jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, set, frozenset)):
-        return [to_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return to_jsonable(value.tolist())
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, Path):
-        return str(value)
-    return value
 
 
 def emit(summary: dict, as_json: bool) -> None:
@@ -169,16 +147,9 @@ def image_from_args(args: argparse.Namespace, path):
             check_voxel_size(opt["voxel_size"], "--voxel-size")
             image = VoxelImage(image.phases, opt["voxel_size"], image.origin)
         return image
-    return read_image(
-        path,
-        voxel_size=opt["voxel_size"],
-        shape=opt["shape"],
-        dtype=opt["dtype"],
-        threshold=opt["threshold"],
-        pore_value=opt["pore_value"],
-        invert=flags["invert"],
-        pore_above=flags["pore_above"],
-        key=opt["key"],
-        mhd_unit=mhd_unit,
-        raw_order=raw_order,
-    )
+    from porefsi.image.io import RawLayout
+
+    raw = None if opt["shape"] is None and opt["dtype"] is None else RawLayout(opt["shape"], opt["dtype"], raw_order)
+    return read_image(path, voxel_size=opt["voxel_size"], raw=raw, key=opt["key"], mhd_unit=mhd_unit,
+                      threshold=opt["threshold"], pore_value=opt["pore_value"], invert=flags["invert"],
+                      pore_above=flags["pore_above"])

@@ -101,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     if out is not None and not args.resume:
         _refuse_existing(out, args.overwrite)
     net = network_from_args(args)
-    from porefsi.case._plausible import warn_injection_pressure
+    from porefsi.flow.plausible import warn_injection_pressure
 
     warn_injection_pressure(net, args.axis, args.rate, args.mu_n)
     times = np.linspace(0, args.t_end, args.snapshots + 1)[1:] if args.snapshots else None
@@ -160,7 +160,7 @@ def _write_outputs(out: Path, net, fluids, args, res) -> None:
 
 
 def _report(args, net, res, out, t0) -> int:
-    from porefsi.case._plausible import warn_pressure_reached
+    from porefsi.flow.plausible import warn_pressure_reached
 
     p = res.history["inlet_pressure_pa"]
     warn_pressure_reached(float(np.nanmax(p)) if np.isfinite(p).any() else float("nan"))

@@ -1,1 +1,133 @@
-"""porefsi.coupling."""
+"""Two-way coupling of the drainage and the solid: options, problem, the loop and its parts.
+
+Nothing here knows of case files: :mod:`porefsi.case` reads a case into the option objects
+below. From an image, step by step::
+
+    from porefsi.coupling import CoupledOptions, CoupledRun, DrainageOptions, build_problem
+    problem = build_problem(image, CoupledOptions(drainage=DrainageOptions(t_end=2.0)))
+    for record in CoupledRun(problem).steps():
+        ...
+
+The parts of an exchange step (:mod:`porefsi.coupling.loop`): fluid advance and load transfer
+(:mod:`~porefsi.coupling.fluid_step`), the solid steppers (:mod:`~porefsi.coupling.solid_step`),
+the network updaters (:mod:`~porefsi.coupling.network_step`), the relaxation
+(:mod:`~porefsi.coupling.relaxation`); the interfaces (:mod:`~porefsi.coupling.hull`,
+:mod:`~porefsi.coupling.traction`, protocol in :mod:`~porefsi.coupling.interface`).
+"""
+
+from porefsi._lazy import exports
+
+#: Public name -> the module that defines it (imported on first use).
+_EXPORTS = {
+    "CoupledOptions": "porefsi.coupling.options",
+    "DrainageOptions": "porefsi.coupling.options",
+    "SolidOptions": "porefsi.coupling.options",
+    "NetworkOptions": "porefsi.coupling.options",
+    "CouplingOptions": "porefsi.coupling.options",
+    "HullOptions": "porefsi.coupling.options",
+    "TractionOptions": "porefsi.coupling.options",
+    "CoupledProblem": "porefsi.coupling.problem",
+    "build_problem": "porefsi.coupling.problem",
+    "build_solid": "porefsi.coupling.problem",
+    "extract_flow_network": "porefsi.coupling.problem",
+    "CoupledRun": "porefsi.coupling.loop",
+    "ExchangeRecord": "porefsi.coupling.records",
+    "IterationStats": "porefsi.coupling.records",
+    "Iterate": "porefsi.coupling.records",
+    "TIMESERIES_COLUMNS": "porefsi.coupling.records",
+    "TIMESERIES_DOCS": "porefsi.coupling.records",
+    "CHECKPOINT_FORMAT": "porefsi.coupling.checkpoint",
+    "StageClock": "porefsi.coupling.timing",
+    "Interface": "porefsi.coupling.interface",
+    "InterfaceBuilder": "porefsi.coupling.interface",
+    "HullInterface": "porefsi.coupling.hull",
+    "hull_interface": "porefsi.coupling.hull",
+    "hull_members": "porefsi.coupling.hull",
+    "sphere_test_points": "porefsi.coupling.hull",
+    "throat_cylinders": "porefsi.coupling.hull",
+    "TractionInterface": "porefsi.coupling.traction",
+    "traction_interface": "porefsi.coupling.traction",
+    "boundary_facet_normals": "porefsi.coupling.traction",
+    "facet_pores_from_labels": "porefsi.coupling.traction",
+    "pore_pressure": "porefsi.coupling.fluid_step",
+    "fluid_times": "porefsi.coupling.fluid_step",
+    "advance_fluid": "porefsi.coupling.fluid_step",
+    "transfer_loads": "porefsi.coupling.fluid_step",
+    "Loads": "porefsi.coupling.fluid_step",
+    "carry_state": "porefsi.coupling.fluid_step",
+    "StaticStepper": "porefsi.coupling.solid_step",
+    "TDGStepper": "porefsi.coupling.solid_step",
+    "make_solid_stepper": "porefsi.coupling.solid_step",
+    "NetworkState": "porefsi.coupling.network_step",
+    "NoUpdate": "porefsi.coupling.network_step",
+    "GeometricUpdate": "porefsi.coupling.network_step",
+    "Reextraction": "porefsi.coupling.network_step",
+    "ExtractionCache": "porefsi.coupling.network_step",
+    "make_updater": "porefsi.coupling.network_step",
+    "Relaxation": "porefsi.coupling.relaxation",
+    "aitken_omega": "porefsi.coupling.relaxation",
+    "geometric_update": "porefsi.coupling.update",
+    "update_nodes": "porefsi.coupling.update",
+    "pore_affine_maps": "porefsi.coupling.update",
+    "deformed_image": "porefsi.coupling.update",
+    "displacement_on_grid": "porefsi.coupling.update",
+    "mean_size_change": "porefsi.coupling.update",
+}
+
+__all__ = [
+    "CoupledOptions",
+    "DrainageOptions",
+    "SolidOptions",
+    "NetworkOptions",
+    "CouplingOptions",
+    "CoupledProblem",
+    "build_problem",
+    "build_solid",
+    "extract_flow_network",
+    "CoupledRun",
+    "ExchangeRecord",
+    "IterationStats",
+    "Iterate",
+    "TIMESERIES_COLUMNS",
+    "TIMESERIES_DOCS",
+    "CHECKPOINT_FORMAT",
+    "StageClock",
+    "Interface",
+    "InterfaceBuilder",
+    "HullInterface",
+    "HullOptions",
+    "hull_interface",
+    "hull_members",
+    "sphere_test_points",
+    "throat_cylinders",
+    "TractionInterface",
+    "TractionOptions",
+    "traction_interface",
+    "boundary_facet_normals",
+    "facet_pores_from_labels",
+    "pore_pressure",
+    "fluid_times",
+    "advance_fluid",
+    "transfer_loads",
+    "Loads",
+    "carry_state",
+    "StaticStepper",
+    "TDGStepper",
+    "make_solid_stepper",
+    "NetworkState",
+    "NoUpdate",
+    "GeometricUpdate",
+    "Reextraction",
+    "ExtractionCache",
+    "make_updater",
+    "Relaxation",
+    "aitken_omega",
+    "geometric_update",
+    "update_nodes",
+    "pore_affine_maps",
+    "deformed_image",
+    "displacement_on_grid",
+    "mean_size_change",
+]
+
+__getattr__, __dir__ = exports(__name__, _EXPORTS)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["aitken_omega"]
+__all__ = ["aitken_omega", "Relaxation"]
 
 
 def aitken_omega(omega_prev: float, r: np.ndarray, r_prev: np.ndarray | None) -> float:
@@ -50,3 +50,44 @@ def aitken_omega(omega_prev: float, r: np.ndarray, r_prev: np.ndarray | None) ->
     dr = np.asarray(r, dtype=float) - np.asarray(r_prev, dtype=float)
     den = float(np.vdot(dr, dr))
     return -float(omega_prev) * float(np.vdot(r_prev, dr)) / den if den > 0 else float(omega_prev)
+
+
+class Relaxation:
+    """The relaxed fixed-point iteration of one exchange step's displacement (sub-iterations).
+
+    Iterate ``k`` gives the solid's answer ``U1`` to the network of the previous iterate; the
+    residual is ``r_k = U1 - U_k`` (``U_0``: the displacement at the start of the step) and the
+    next iterate ``U_{k+1} = U_k + omega_k r_k``, with Aitken's ``omega_k`` or 1.
+
+    Parameters
+    ----------
+    start : ndarray
+        Displacement at the start of the step (any shape), m.
+    aitken : bool, default True
+        Aitken's dynamic factor; False iterates plainly (``omega = 1``).
+
+    Attributes
+    ----------
+    residuals : list of float
+        ``|r_k| / |U1|`` of each iterate.
+    omegas : list of float
+        The factor used after each iterate.
+    """
+
+    def __init__(self, start: np.ndarray, aitken: bool = True):
+        self.start, self.aitken = start, bool(aitken)
+        self.current: np.ndarray | None = None
+        self._omega, self._r_prev = 1.0, None
+        self.residuals: list[float] = []
+        self.omegas: list[float] = []
+
+    def __call__(self, U1: np.ndarray) -> np.ndarray:
+        """The next (relaxed) iterate after the solid answered ``U1``."""
+        base = self.start if self.current is None else self.current
+        r = U1 - base
+        if self.aitken:
+            self._omega = aitken_omega(self._omega, r, self._r_prev)
+        self.residuals.append(float(np.linalg.norm(r)) / max(float(np.linalg.norm(U1)), 1e-300))
+        self.current, self._r_prev = base + self._omega * r, r
+        self.omegas.append(float(self._omega))
+        return self.current

@@ -1,6 +1,6 @@
 """Consistent traction transfer: each pore's pressure acts as ``-P n`` on its wall facets.
 
-The alternative to the seed paper's convex hull (:mod:`porefsi.coupling.interface`): the FE
+The alternative to the seed paper's convex hull (:mod:`porefsi.coupling.hull`): the FE
 boundary facets that bound a pore's voxel region (found from the extraction's label image) carry
 that pore's pressure as a surface traction, integrated exactly for P1. Over a closed cavity the
 resultant is zero to round-off, and the work matches the Lamé cavity solution.
@@ -8,17 +8,77 @@ resultant is zero to round-off, and the work matches the Lamé cavity solution.
 
 from __future__ import annotations
 
+import dataclasses
 import time
-from typing import TYPE_CHECKING
+from typing import ClassVar
 
 import numpy as np
+import scipy.sparse as sp
 
+from porefsi.coupling._sparse import assemble, resultants
+from porefsi.coupling.interface import LinearInterface
 from porefsi.errors import InputError
 
-if TYPE_CHECKING:
-    from porefsi.coupling.interface import Interface
+__all__ = ["TractionInterface", "traction_interface", "boundary_facet_normals",
+           "facet_pores_from_labels"]
 
-__all__ = ["traction_interface", "boundary_facet_normals", "facet_pores_from_labels"]
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class TractionInterface(LinearInterface):
+    """The consistent wall-traction operator (an :class:`~porefsi.coupling.interface.Interface`).
+
+    Attributes
+    ----------
+    operator : scipy.sparse.csr_matrix, shape (3 Nn, Np)
+        ``nodal_forces(P).ravel() == operator @ P``; m². ``Nn`` is the number of mesh vertices,
+        or of P2 Lagrange nodes (vertices, then edge midpoints) for a P2-consistent operator.
+    wall_area : ndarray, shape (Np,)
+        The summed facet areas of each pore's wall, m².
+    pore_nodes : tuple of ndarray
+        For each pore, the vertices of its wall facets.
+    n_unloaded : int
+        Always 0 (every facet loads its own nodes); kept for the common interface.
+    seconds : float
+        Build time, s.
+    wall_vector : ndarray, shape (Np, 3)
+        Per pore, the resultant of the wall traction per unit pressure, ``-sum_e A_e n_e`` over its
+        wall facets, m² (zero for a closed cavity; a pore open to a throat or a box face pushes
+        the solid away from the opening); computed from the facets, independently of the operator.
+    vertex_operator : scipy.sparse.csr_matrix, shape (3 Nv, Np), or None
+        For an operator on P2 Lagrange nodes: the P1 split of the same load on the mesh vertices
+        (same resultant per pore), for outputs drawn on the vertices (:meth:`vertex_forces`);
+        None when :attr:`operator` already acts on the vertices.
+    """
+
+    method: ClassVar[str] = "traction"
+    operator: sp.csr_matrix
+    wall_area: np.ndarray
+    pore_nodes: tuple
+    n_unloaded: int
+    seconds: float
+    wall_vector: np.ndarray | None = None
+    vertex_operator: sp.csr_matrix | None = None
+
+    @property
+    def handed_area(self) -> np.ndarray:
+        """The facet area of each pore, m² (as :attr:`wall_area`)."""
+        return self.wall_area
+
+    def load_balance_error(self, pressure) -> float:
+        """``sum_i |P_i| |R_i - w_i| / sum_i |P_i| A_i``.
+
+        ``R_i`` is the resultant of the nodal forces the operator assigns to pore ``i`` per unit
+        pressure and ``w_i`` the exact wall-traction resultant (:attr:`wall_vector`); without
+        ``wall_vector`` the resultant of the whole load (a closed-cavity check). Zero pressures give 0.
+        """
+        p = self._pressure(pressure)
+        ref = float(np.sum(np.abs(p) * self.wall_area))
+        if ref == 0.0:
+            return 0.0
+        if self.wall_vector is None:
+            return float(np.linalg.norm(self.nodal_forces(p).sum(axis=0))) / ref
+        res = resultants(self.operator)
+        return float(np.sum(np.abs(p) * np.linalg.norm(res - self.wall_vector, axis=1))) / ref
 
 
 def boundary_facet_normals(points, tets, facets):
@@ -93,7 +153,7 @@ def facet_pores_from_labels(points, facets, normals, labels, voxel_size, origin=
     return out
 
 
-def traction_interface(points, tets, facets, facet_pore, n_pores: int, *, p2_nodes=None) -> Interface:
+def traction_interface(points, tets, facets, facet_pore, n_pores: int, *, p2_nodes=None) -> TractionInterface:
     """Consistent traction transfer: pore pressure acts as ``-P n`` on its wall facets.
 
     Each boundary facet ``e`` facing pore ``i = facet_pore[e]`` (>= 0) carries the force
@@ -115,15 +175,13 @@ def traction_interface(points, tets, facets, facet_pore, n_pores: int, *, p2_nod
         ``(midpoint_nodes, n_lagrange)`` of a P2 basis: ``midpoint_nodes(a, b)`` gives the
         Lagrange node of each edge (e.g. :func:`porefsi.solid.bc.midpoint_nodes`),
         ``n_lagrange`` the number of Lagrange nodes. The operator then acts on all Lagrange
-        nodes, and :attr:`~porefsi.coupling.interface.Interface.vertex_operator` keeps the P1
+        nodes, and :attr:`TractionInterface.vertex_operator` keeps the P1
         vertex split for outputs.
 
     Returns
     -------
-    Interface
+    TractionInterface
     """
-    from porefsi.coupling.interface import Interface, _assemble  # interface re-exports this module
-
     t0 = time.perf_counter()
     fp = np.asarray(facet_pore, np.int64)
     f = np.asarray(facets, np.int64)
@@ -143,7 +201,7 @@ def traction_interface(points, tets, facets, facet_pore, n_pores: int, *, p2_nod
                 rows.append(3 * m + k)
                 cols.append(pu)
                 vals.append(-area * nrm[:, k] / 3.0)
-        return _assemble(rows, cols, vals, (3 * n_rows, n_pores))
+        return assemble(rows, cols, vals, (3 * n_rows, n_pores))
 
     T1 = split([fu[:, a] for a in range(3)], n_nodes)
     if p2_nodes is None:
@@ -159,5 +217,4 @@ def traction_interface(points, tets, facets, facet_pore, n_pores: int, *, p2_nod
     order = np.argsort(pu, kind="stable")
     ptr = np.searchsorted(pu[order], np.arange(n_pores + 1))
     nodes = tuple(np.unique(fu[order[ptr[i]:ptr[i + 1]]]) for i in range(n_pores))
-    return Interface(T, "traction", wall, nodes, 0, time.perf_counter() - t0, wall_vector=vec,
-                     vertex_operator=vertex_T)
+    return TractionInterface(T, wall, nodes, 0, time.perf_counter() - t0, wall_vector=vec, vertex_operator=vertex_T)

@@ -22,20 +22,20 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from porefsi.errors import NetworkError
 from porefsi.flow.fluids import Fluids
 from porefsi.image.voxel_image import axis_index
-from porefsi.network.geometry import boundary_conduit_lengths, pore_duct_resistance, resistance_factors
+from porefsi.network.geometry import boundary_resistance, resistance_factors
 from porefsi.network.network import Network
 
-__all__ = ["DrainageGraph", "build_graph", "spanning_pores", "boundary_lengths"]
+__all__ = ["DrainageGraph", "build_graph", "spanning_pores"]
 
 
 def spanning_pores(net: Network, axis) -> np.ndarray:
     """Boolean mask (Np,) of pores whose connected component touches both faces of ``axis``.
+
+    The search is :meth:`porefsi.network.network.Network.spanning_clusters`.
 
     Raises
     ------
@@ -44,28 +44,13 @@ def spanning_pores(net: Network, axis) -> np.ndarray:
     """
     net.require_inlet_outlet(axis)
     ax = axis_index(axis)
-    n = net.n_pores
-    c = net.throat_conns
-    adj = sp.coo_array((np.ones(len(c)), (c[:, 0], c[:, 1])), shape=(n, n))
-    _, lab = connected_components(adj, directed=False)
-    inl = np.unique(lab[net.inlet(ax)])
-    out = np.unique(lab[net.outlet(ax)])
-    both = np.intersect1d(inl, out)
-    if both.size == 0:
+    mask, _, n_spanning = net.spanning_clusters(ax)
+    if n_spanning == 0:
         raise NetworkError(
             f"no connected group of pores joins the {'xyz'[ax]}min and {'xyz'[ax]}max faces: the network "
             "does not percolate along this axis; choose another axis or a larger image"
         )
-    return np.isin(lab, both)
-
-
-def boundary_lengths(net: Network, axis) -> tuple[np.ndarray, np.ndarray]:
-    """Boundary-conduit lengths (m) of every pore to the low and the high face of ``axis``.
-
-    The one definition shared with single-phase permeability:
-    :func:`porefsi.network.geometry.boundary_conduit_lengths`.
-    """
-    return boundary_conduit_lengths(net, axis)
+    return mask
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -122,11 +107,11 @@ def build_graph(net: Network, fluids: Fluids, axis, keep: np.ndarray | None = No
     tid = np.flatnonzero(tmask)
     h = resistance_factors(net)[tid].sum(axis=1)
     R = net.pore_radius[keep]
-    L_lo, L_hi = boundary_lengths(net, ax)
+    h_lo, h_hi = boundary_resistance(net, ax)  # the boundary conduits of single-phase flow too
     inl = np.flatnonzero(net.inlet(ax)[keep])
     out = np.flatnonzero(net.outlet(ax)[keep])
-    h_in = pore_duct_resistance(net, L_lo[keep][inl], keep[inl])
-    h_out = pore_duct_resistance(net, L_hi[keep][out], keep[out])
+    h_in = h_lo[keep[inl]]
+    h_out = h_hi[keep[out]]
     ai = new_id[c[tid, 0]]
     bi = new_id[c[tid, 1]]
     a = np.concatenate([ai, np.full(inl.size, n), out]).astype(np.int64)

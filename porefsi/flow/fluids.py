@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import ClassVar
 
 import numpy as np
 
+from porefsi._schema import Limits
 from porefsi.errors import InputError
 from porefsi.network.geometry import class_shape_factor, shape_class
 
@@ -57,6 +59,12 @@ class Fluids:
     sigma: float = 0.03
     theta_deg: float = 0.0
 
+    #: Allowed values of each parameter (the case file's bounds are these).
+    LIMITS: ClassVar[dict[str, Limits]] = {"mu_w": Limits(0.0, None, lo_open=True),
+                                           "mu_n": Limits(0.0, None, lo_open=True),
+                                           "sigma": Limits(0.0, None, lo_open=True),
+                                           "theta_deg": Limits(0.0, 90.0, hi_open=True)}
+
     def __post_init__(self):
         for name in ("mu_w", "mu_n", "sigma"):
             v = getattr(self, name)
@@ -64,12 +72,12 @@ class Fluids:
                 x = float(v)
             except (TypeError, ValueError):
                 raise InputError(f"Fluids.{name} must be a number, got {v!r}") from None
-            if not math.isfinite(x) or x <= 0:
+            if not math.isfinite(x) or not self.LIMITS[name].contains(x):
                 unit = "N/m" if name == "sigma" else "Pa.s"
                 raise InputError(f"Fluids.{name} must be a finite number > 0 {unit}, got {v!r}")
             object.__setattr__(self, name, x)
         th = float(self.theta_deg)
-        if not math.isfinite(th) or th < 0 or th >= 90:
+        if not math.isfinite(th) or not self.LIMITS["theta_deg"].contains(th):
             raise InputError(
                 f"contact angle {self.theta_deg!r} deg is not a drainage of the wetting fluid: it must be "
                 "in [0, 90) degrees (measured through the wetting fluid); swap the fluids or use "

@@ -41,18 +41,15 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 
 from porefsi.errors import ConvergenceError, InputError, NetworkError
 from porefsi.image.voxel_image import AXES, axis_index
 from porefsi.network.geometry import boundary_resistance, conduit_conductance
 from porefsi.network.network import Network
+from porefsi.units import MILLIDARCY
 
 __all__ = ["PermeabilityResult", "absolute_permeability", "flow_field", "MILLIDARCY"]
-
-#: One millidarcy in m² (1 D = 9.869233e-13 m²).
-MILLIDARCY = 9.869233e-16
 
 #: Above this many unknowns the "auto" solver uses AMG-preconditioned CG instead of SuperLU.
 #: Measured on random 3-D lattices (one core, noisy shared machine): SuperLU 0.08 s vs CG+AMG 0.04 s at
@@ -144,20 +141,6 @@ def flow_field(net: Network, pressure: np.ndarray, viscosity: float = 1e-3) -> n
     g = conduit_conductance(net, viscosity)
     P = np.asarray(pressure, dtype=float)
     return g * (P[net.throat_conns[:, 0]] - P[net.throat_conns[:, 1]])
-
-
-def _clusters(net: Network, ax: int) -> tuple[np.ndarray, int, int]:
-    """Pores on clusters touching both faces of ``ax``: (mask (Np,), n clusters, n kept clusters)."""
-    n_p = net.n_pores
-    conns = net.throat_conns
-    adj = sp.coo_array((np.ones(net.n_throats), (conns[:, 0], conns[:, 1])), shape=(n_p, n_p))
-    n_comp, comp = csgraph.connected_components(adj, directed=False)
-    has_in = np.zeros(n_comp, bool)
-    has_out = np.zeros(n_comp, bool)
-    has_in[comp[net.inlet(ax)]] = True
-    has_out[comp[net.outlet(ax)]] = True
-    keep_comp = has_in & has_out
-    return keep_comp[comp], int(n_comp), int(keep_comp.sum())
 
 
 def _solve_centre(net, ax, keep, g, dp, solver, rtol):
@@ -312,7 +295,7 @@ def absolute_permeability(
             f"{name}min and {name}max faces of a box {net.extent[ax]:.3g} m long: with boundary='centre' "
             f"its pressure would be both dp and 0; use boundary='conduit' or a longer image along {name}"
         )
-    keep, n_comp, n_keep_comp = _clusters(net, ax)
+    keep, n_comp, n_keep_comp = net.spanning_clusters(ax)
     if not keep.any():
         raise NetworkError(
             f"no connected path of pores joins the {name}min face to the {name}max face "

@@ -1,14 +1,35 @@
 """Segmented images: the :class:`VoxelImage` type, readers/writers, crops, synthetic geometry."""
 
-from porefsi.image.io import MHD_UNITS, READ_FORMATS, SAMPLES, load_sample, read_image, segment, write_image
-from porefsi.image.ops import PercolationResult, crop, downsample, percolating_cluster
-from porefsi.image.voxel_image import AXES, VoxelImage, axis_index
+from porefsi._lazy import exports
+
+#: Public name -> the module that defines it (imported on first use).
+_EXPORTS = {
+    "VoxelImage": "porefsi.image.voxel_image",
+    "AXES": "porefsi.image.voxel_image",
+    "axis_index": "porefsi.image.voxel_image",
+    "read_image": "porefsi.image.io",
+    "write_image": "porefsi.image.io",
+    "segment": "porefsi.image.io",
+    "load_sample": "porefsi.image.io",
+    "SAMPLES": "porefsi.image.io",
+    "READ_FORMATS": "porefsi.image.io",
+    "MHD_UNITS": "porefsi.image.io",
+    "PlausibilityWarning": "porefsi.image.io",
+    "RawLayout": "porefsi.image.io",
+    "crop": "porefsi.image.ops",
+    "downsample": "porefsi.image.ops",
+    "percolating_cluster": "porefsi.image.ops",
+    "PercolationResult": "porefsi.image.ops",
+    "SyntheticLattice": "porefsi.image.synthetic",
+    "SyntheticBundle": "porefsi.image.synthetic",
+    "sphere_lattice": "porefsi.image.synthetic",
+    "cylinder_bundle": "porefsi.image.synthetic",
+}
 
 __all__ = [
     "VoxelImage",
     "AXES",
     "axis_index",
-    # io
     "read_image",
     "write_image",
     "segment",
@@ -16,10 +37,16 @@ __all__ = [
     "SAMPLES",
     "READ_FORMATS",
     "MHD_UNITS",
-    # ops
+    "PlausibilityWarning",
+    "RawLayout",
     "crop",
     "downsample",
     "percolating_cluster",
     "PercolationResult",
-    # synthetic (added by its module)
+    "SyntheticLattice",
+    "SyntheticBundle",
+    "sphere_lattice",
+    "cylinder_bundle",
 ]
+
+__getattr__, __dir__ = exports(__name__, _EXPORTS)

@@ -12,6 +12,7 @@ Conventions (see ``docs/images.md``):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import zipfile
 import zlib
@@ -27,7 +28,7 @@ from porefsi.image._tiff import _read_tiff, _require_3d
 from porefsi.image.voxel_image import VoxelImage, positive_length
 
 # MetaImage parsing/writing lives in _mhd.py, TIFF reading in _tiff.py; MHD_UNITS is re-exported here.
-__all__ = ["segment", "read_image", "check_voxel_size", "PlausibilityWarning", "VOXEL_SIZE_LIMITS",
+__all__ = ["segment", "read_image", "RawLayout", "check_voxel_size", "PlausibilityWarning", "VOXEL_SIZE_LIMITS",
            "PLAUSIBLE_VOXEL_SIZE", "write_image", "load_sample", "SAMPLES", "READ_FORMATS", "MHD_UNITS"]
 
 #: Readable file suffixes and what each needs from the user.
@@ -281,8 +282,29 @@ def _read_npy(p: Path) -> np.ndarray:
     return _require_3d(np.load(p, allow_pickle=False), str(p))
 
 
-def _read_any(p: Path, suffix: str, shape, dtype, key, mhd_unit, raw_order, voxel_size):
+@dataclasses.dataclass(frozen=True)
+class RawLayout:
+    """How a headerless raw file (``.raw``, ``.bin``, ``.dat`` without a ``.mhd``) stores its voxels.
+
+    Attributes
+    ----------
+    shape : sequence of 3 int
+        (nx, ny, nz).
+    dtype : str or numpy dtype
+        Voxel type, e.g. ``'uint8'``, ``'<u2'``, ``'>u2'`` (big-endian).
+    order : {'F', 'C'}, default 'F'
+        'F' = x varies fastest in the file (MetaImage, ImageJ, pnextract); 'C' = z fastest
+        (``ndarray.tofile`` of a C-ordered (nx, ny, nz) array).
+    """
+
+    shape: tuple
+    dtype: object
+    order: str = "F"
+
+
+def _read_any(p: Path, suffix: str, raw: RawLayout | None, key, mhd_unit, voxel_size):
     """Dispatch on the suffix; return (array, voxel size from the file or None, origin or None)."""
+    shape, dtype, raw_order = (None, None, "F") if raw is None else (raw.shape, raw.dtype, raw.order)
     file_vs = origin = None
     if suffix == ".npy":
         arr = _read_npy(p)
@@ -296,7 +318,7 @@ def _read_any(p: Path, suffix: str, shape, dtype, key, mhd_unit, raw_order, voxe
             arr, file_vs, origin = _read_mhd(hdr, mhd_unit, voxel_size)
         elif shape is None or dtype is None:
             raise InputError(
-                f"{p} is raw voxel data without a header: pass shape=(nx, ny, nz) and dtype (CLI "
+                f"{p} is raw voxel data without a header: pass raw=RawLayout(shape=(nx, ny, nz), dtype=...) (CLI "
                 f"--shape NX NY NZ --dtype uint8), or put a MetaImage header {hdr.name} next to it"
             )
         elif suffix == ".raw.gz":
@@ -312,20 +334,8 @@ def _read_any(p: Path, suffix: str, shape, dtype, key, mhd_unit, raw_order, voxe
     return arr, file_vs, origin
 
 
-def read_image(
-    path,
-    *,
-    voxel_size: float | None = None,
-    shape=None,
-    dtype=None,
-    threshold: float | None = None,
-    pore_value: float | None = None,
-    invert: bool = False,
-    pore_above: bool = False,
-    key: str | None = None,
-    mhd_unit: str | float = "auto",
-    raw_order: str = "F",
-) -> VoxelImage:
+def read_image(path, *, voxel_size: float | None = None, raw: RawLayout | None = None, key: str | None = None,
+               mhd_unit: str | float = "auto", **segmentation) -> VoxelImage:
     """Read a rock image and segment it into a :class:`VoxelImage` (1 = pore).
 
     Parameters
@@ -336,12 +346,8 @@ def read_image(
     voxel_size : float, optional
         Voxel edge length, m, finite and > 0 (checked before the file is read). Overrides the
         file's; required when the file has none.
-    shape : sequence of 3 int, optional
-        Raw files: (nx, ny, nz).
-    dtype : str or numpy dtype, optional
-        Raw files: voxel type, e.g. ``'uint8'``, ``'<u2'``, ``'>u2'`` (big-endian).
-    threshold, pore_value, invert, pore_above
-        How to tell pore from solid; see :func:`segment`.
+    raw : RawLayout, optional
+        Headerless raw files: shape, voxel type and byte order of the voxels.
     key : str, optional
         ``.npz``: the array to read.
     mhd_unit : {'auto', 'm', 'mm', 'um', 'nm'} or float, default 'auto'
@@ -350,9 +356,9 @@ def read_image(
         the header has one; else spacing > 0.02 is micrometres and spacing <= 1e-4 is metres;
         spacing in between is ambiguous (metres for pnextract, millimetres for ITK tools) and
         raises :class:`InputError` asking for ``mhd_unit``.
-    raw_order : {'F', 'C'}, default 'F'
-        Raw files with explicit ``shape``: 'F' = x varies fastest in the file (MetaImage, ImageJ,
-        pnextract); 'C' = z fastest (``ndarray.tofile`` of a C-ordered (nx, ny, nz) array).
+    **segmentation
+        How to tell pore from solid (``threshold``, ``pore_value``, ``invert``, ``pore_above``):
+        passed on to :func:`segment`.
 
     Returns
     -------
@@ -391,7 +397,7 @@ def read_image(
         raise InputError(f"{p} is a directory; pass an image file ({', '.join(READ_FORMATS)})")
     suffix = "".join(p.suffixes[-2:]).lower() if p.name.lower().endswith(".raw.gz") else p.suffix.lower()
     try:
-        arr, file_vs, origin = _read_any(p, suffix, shape, dtype, key, mhd_unit, raw_order, voxel_size)
+        arr, file_vs, origin = _read_any(p, suffix, raw, key, mhd_unit, voxel_size)
     except InputError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
@@ -410,8 +416,7 @@ def read_image(
             "(CLI --voxel-size M, e.g. 5.345e-6)"
         )
     check_voxel_size(vs, "voxel_size (--voxel-size)" if voxel_size is not None else f"the voxel size stored in {p}")
-    phases = segment(arr, threshold=threshold, pore_value=pore_value, invert=invert, pore_above=pore_above)
-    return VoxelImage(phases, vs, np.zeros(3) if origin is None else origin)
+    return VoxelImage(segment(arr, **segmentation), vs, np.zeros(3) if origin is None else origin)
 
 
 # --------------------------------------------------------------------------------------------

@@ -8,37 +8,61 @@ the Nørsett predictor-corrector, third order, L-stable limit). The others are r
 :func:`integrate` turns one into a generator of ``(t, u, v)``.
 """
 
-from porefsi.integrators._common import StepInfo, default_solver, integrate
-from porefsi.integrators.central_difference import CentralDifferenceStepper, critical_time_step, max_frequency
-from porefsi.integrators.generalized_alpha import GeneralizedAlphaStepper, generalized_alpha_parameters
-from porefsi.integrators.newmark import NewmarkStepper
-from porefsi.integrators.quasistatic import QuasiStaticStepper, quasistatic, solve_static
-from porefsi.integrators.spectral import amplification_matrix, spectral_radius
-from porefsi.integrators.system import LinearSystem, SecondOrderSystem, SolverFactory
-from porefsi.integrators.tdg import ALPHA, LAMBDA, TDGStepper, effective_loads
-from porefsi.integrators.tdg_exact import TDGExactStepper
+from porefsi._lazy import exports
+
+#: Public name -> the module that defines it (imported on first use).
+_EXPORTS = {
+    "StepInfo": "porefsi.integrators._common",
+    "default_solver": "porefsi.integrators._common",
+    "integrate": "porefsi.integrators._common",
+    "CentralDifferenceStepper": "porefsi.integrators.central_difference",
+    "critical_time_step": "porefsi.integrators.central_difference",
+    "max_frequency": "porefsi.integrators.central_difference",
+    "GeneralizedAlphaStepper": "porefsi.integrators.generalized_alpha",
+    "generalized_alpha_parameters": "porefsi.integrators.generalized_alpha",
+    "NewmarkStepper": "porefsi.integrators.newmark",
+    "QuasiStaticStepper": "porefsi.integrators.quasistatic",
+    "quasistatic": "porefsi.integrators.quasistatic",
+    "solve_static": "porefsi.integrators.quasistatic",
+    "amplification_matrix": "porefsi.integrators.spectral",
+    "spectral_radius": "porefsi.integrators.spectral",
+    "LinearSystem": "porefsi.integrators.system",
+    "SecondOrderSystem": "porefsi.integrators.system",
+    "SolverFactory": "porefsi.integrators.system",
+    "ALPHA": "porefsi.integrators.tdg",
+    "LAMBDA": "porefsi.integrators.tdg",
+    "TDGStepper": "porefsi.integrators.tdg",
+    "effective_loads": "porefsi.integrators.tdg",
+    "TDGExactStepper": "porefsi.integrators.tdg_exact",
+}
 
 __all__ = [
-    "ALPHA",
-    "LAMBDA",
+    "StepInfo",
+    "default_solver",
+    "integrate",
     "CentralDifferenceStepper",
+    "critical_time_step",
+    "max_frequency",
     "GeneralizedAlphaStepper",
-    "LinearSystem",
+    "generalized_alpha_parameters",
     "NewmarkStepper",
     "QuasiStaticStepper",
-    "SecondOrderSystem",
-    "SolverFactory",
-    "StepInfo",
-    "TDGExactStepper",
-    "TDGStepper",
-    "amplification_matrix",
-    "critical_time_step",
-    "default_solver",
-    "effective_loads",
-    "generalized_alpha_parameters",
-    "integrate",
-    "max_frequency",
     "quasistatic",
     "solve_static",
+    "amplification_matrix",
     "spectral_radius",
+    "LinearSystem",
+    "SecondOrderSystem",
+    "SolverFactory",
+    "ALPHA",
+    "LAMBDA",
+    "TDGStepper",
+    "effective_loads",
+    "TDGExactStepper",
 ]
+
+__getattr__, __dir__ = exports(__name__, _EXPORTS)
+
+# ``quasistatic`` names a module and its function: bind the function now (a lazily resolved name
+# would be shadowed by the submodule as soon as anything imports it)
+from porefsi.integrators.quasistatic import quasistatic  # noqa: E402

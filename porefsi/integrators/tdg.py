@@ -213,7 +213,7 @@ class TDGStepper:
             ``residual_norms`` are the force residuals (N) of the TDG equations at the start of
             each pass; ``extra['tangent_defect']`` is the secant check value (``"auto"`` policy).
         """
-        n, dt, g, lam = self._n, self.dt, ALPHA, LAMBDA
+        n = self._n
         u = check_state("u", u, n)
         v = check_state("v", v, n)
         t = check_time(t)
@@ -221,80 +221,76 @@ class TDGStepper:
             f0, f23 = (self.system.external_force(s) for s in self.load_times(t))
         else:
             f0, f23 = loads
-        f0 = check_state("loads[0]", f0, n)
-        f23 = check_state("loads[1]", f23, n)
-        F = effective_loads(f0, f23, self.load_rule)
+        F = effective_loads(check_state("loads[0]", f0, n), check_state("loads[1]", f23, n), self.load_rule)
         n_fact = self._update_tangent(u, t)
-        K, solve, mass = self._K, self._solve, self._mass
-        tR = (t + RADAU_ABSCISSAE[0] * dt, t + RADAU_ABSCISSAE[1] * dt)
-        Ti = T_INVERSE
-
         ku = [np.zeros(n), np.zeros(n)]
         kv = [np.zeros(n), np.zeros(n)]
         norms, n_solves, converged = [], 0, self.rtol is None
         f_first = du_last = f_last = None
         for it in range(self.n_iter):
-            # stage states in the Nørsett basis (A' = [[g+lam, -lam], [1-g, g]])
-            U0 = u + dt * ((g + lam) * ku[0] - lam * ku[1])
-            V0 = v + dt * ((g + lam) * kv[0] - lam * kv[1])
-            U1 = u + dt * ((1 - g) * ku[0] + g * ku[1])
-            V1 = v + dt * ((1 - g) * kv[0] + g * kv[1])
-            # internal force at the Radau points, mapped back to the Nørsett basis with T^-1
-            UR0 = T_MATRIX[0, 0] * U0 + T_MATRIX[0, 1] * U1
-            fR0 = self.system.internal_force(UR0, tR[0])
-            fR1 = self.system.internal_force(U1, tR[1])
+            ku, kv, dk, U1, fR1 = self._pass(u, v, t, ku, kv, F, norms)
+            n_solves += 2
             if it == 0:
                 f_first = fR1
             else:
                 du_last, f_last = U1 - u, fR1
-            rv0 = mass.apply(kv[0]) + Ti[0, 0] * fR0 + Ti[0, 1] * fR1 - F[0]
-            rv1 = mass.apply(kv[1]) + fR1 - F[1]
-            ru0, ru1 = ku[0] - V0, ku[1] - V1
-            norms.append(float(math.hypot(np.linalg.norm(rv0), np.linalg.norm(rv1))))
-            if not np.isfinite(norms[-1]):
-                raise ConvergenceError(
-                    f"TDG residual is not finite at t={t!r} s (pass {it + 1}); reduce dt", norms
-                )
-            # lower-triangular (Nørsett) correction: two solves with M* = M + g^2 dt^2 K
-            dkv0 = solve(-rv0 + g * dt * (K @ ru0))
-            dku0 = -ru0 + g * dt * dkv0
-            dkv1 = solve(-rv1 - (1 - g) * dt * (K @ (dku0 + g * dt * dkv0)) + g * dt * (K @ ru1))
-            dku1 = -ru1 + dt * ((1 - g) * dkv0 + g * dkv1)
-            n_solves += 2
-            ku = [ku[0] + dku0, ku[1] + dku1]
-            kv = [kv[0] + dkv0, kv[1] + dkv1]
-            if self.rtol is not None:
-                rel = max(
-                    _rel(dku0, ku[0]), _rel(dku1, ku[1]), _rel(dkv0, kv[0]), _rel(dkv1, kv[1])
-                )
-                if rel <= self.rtol:
-                    converged = True
-                    break
+            if self.rtol is not None and max(_rel(dk[0], ku[0]), _rel(dk[1], ku[1]), _rel(dk[2], kv[0]),
+                                             _rel(dk[3], kv[1])) <= self.rtol:
+                converged = True
+                break
         if not converged:
             raise ConvergenceError(
                 f"TDG corrector did not reach rtol={self.rtol} in {self.n_iter} passes at t={t!r} s; "
                 "raise n_iter or reduce dt (stiff modes contract by ~0.94 per pass)",
                 norms,
             )
+        g, dt = ALPHA, self.dt
         u_new = u + dt * ((1 - g) * ku[0] + g * ku[1])
         v_new = v + dt * ((1 - g) * kv[0] + g * kv[1])
-        extra = {}
-        if du_last is not None:
-            df = f_last - f_first
-            ndf = float(np.linalg.norm(df))
-            defect = float(np.linalg.norm(df - K @ du_last)) / ndf if ndf > 0 else 0.0
-            extra["tangent_defect"] = defect
-            if self.tangent_policy == "auto" and defect > self.tangent_rtol:
-                self._stale = True
-        info = StepInfo(
-            iterations=len(norms),
-            residual_norms=tuple(norms),
-            n_solves=n_solves,
-            n_factorizations=n_fact,
-            converged=converged,
-            extra=extra,
-        )
+        extra = {} if du_last is None else {"tangent_defect": self._tangent_defect(du_last, f_first, f_last)}
+        info = StepInfo(iterations=len(norms), residual_norms=tuple(norms), n_solves=n_solves,
+                        n_factorizations=n_fact, converged=converged, extra=extra)
         return u_new, v_new, info
+
+    def _pass(self, u, v, t, ku, kv, F, norms: list):
+        """One Nørsett predictor-corrector pass on the stage increments ``ku``, ``kv``.
+
+        Appends the force residual norm at the start of the pass (N) to ``norms``; returns the
+        corrected ``ku``, ``kv``, the corrections ``(dku0, dku1, dkv0, dkv1)`` and the end-of-step
+        stage state ``U1`` with its internal force ``fR1`` (for the secant check).
+        """
+        dt, g, lam = self.dt, ALPHA, LAMBDA
+        K, solve, mass, Ti = self._K, self._solve, self._mass, T_INVERSE
+        # stage states in the Nørsett basis (A' = [[g+lam, -lam], [1-g, g]])
+        U0 = u + dt * ((g + lam) * ku[0] - lam * ku[1])
+        V0 = v + dt * ((g + lam) * kv[0] - lam * kv[1])
+        U1 = u + dt * ((1 - g) * ku[0] + g * ku[1])
+        V1 = v + dt * ((1 - g) * kv[0] + g * kv[1])
+        # internal force at the Radau points, mapped back to the Nørsett basis with T^-1
+        UR0 = T_MATRIX[0, 0] * U0 + T_MATRIX[0, 1] * U1
+        fR0 = self.system.internal_force(UR0, t + RADAU_ABSCISSAE[0] * dt)
+        fR1 = self.system.internal_force(U1, t + RADAU_ABSCISSAE[1] * dt)
+        rv0 = mass.apply(kv[0]) + Ti[0, 0] * fR0 + Ti[0, 1] * fR1 - F[0]
+        rv1 = mass.apply(kv[1]) + fR1 - F[1]
+        ru0, ru1 = ku[0] - V0, ku[1] - V1
+        norms.append(float(math.hypot(np.linalg.norm(rv0), np.linalg.norm(rv1))))
+        if not np.isfinite(norms[-1]):
+            raise ConvergenceError(f"TDG residual is not finite at t={t!r} s (pass {len(norms)}); reduce dt", norms)
+        # lower-triangular (Nørsett) correction: two solves with M* = M + g^2 dt^2 K
+        dkv0 = solve(-rv0 + g * dt * (K @ ru0))
+        dku0 = -ru0 + g * dt * dkv0
+        dkv1 = solve(-rv1 - (1 - g) * dt * (K @ (dku0 + g * dt * dkv0)) + g * dt * (K @ ru1))
+        dku1 = -ru1 + dt * ((1 - g) * dkv0 + g * dkv1)
+        return [ku[0] + dku0, ku[1] + dku1], [kv[0] + dkv0, kv[1] + dkv1], (dku0, dku1, dkv0, dkv1), U1, fR1
+
+    def _tangent_defect(self, du, f_first, f_last) -> float:
+        """Secant check of the factorised tangent over the step; flags it stale (``"auto"``) when it fails."""
+        df = f_last - f_first
+        ndf = float(np.linalg.norm(df))
+        defect = float(np.linalg.norm(df - self._K @ du)) / ndf if ndf > 0 else 0.0
+        if self.tangent_policy == "auto" and defect > self.tangent_rtol:
+            self._stale = True
+        return defect
 
 
 def _rel(d: np.ndarray, x: np.ndarray) -> float:

@@ -137,11 +137,16 @@ def write_network_vtp(
         p = p.with_name(p.name + ".vtp")
     if not p.parent.exists():
         raise InputError(f"cannot write {p}: folder {p.parent} does not exist; create it first")
-    n_p, n_t = net.n_pores, net.n_throats
-    conns = net.throat_conns.astype(np.int64)
-    # Pore of every point: the pores themselves, then (tubes) the two ends of every throat.
-    at = np.concatenate([np.arange(n_p), conns.ravel()]) if tubes else np.arange(n_p)
-    on_throat = np.arange(at.size) >= n_p
+    at = np.concatenate([np.arange(net.n_pores), net.throat_conns.astype(np.int64).ravel()]) if tubes \
+        else np.arange(net.n_pores)  # pore of every point: the pores, then (tubes) the two ends of every throat
+    parts = _vtp_text(net, at, _point_arrays(net, at, point_data, tubes), _cell_arrays(net, cell_data), tubes)
+    atomic_write_bytes(p, "".join(parts).encode("ascii"))  # atomic, with the umask's permissions
+    return p
+
+
+def _point_arrays(net: Network, at: np.ndarray, point_data, tubes: bool) -> dict:
+    """The point arrays (module docstring of :func:`write_network_vtp`); ``at``: the pore of each point."""
+    n_p = net.n_pores
     pore_vals = {
         "volume": net.pore_volume,
         "coordination": net.coordination.astype(np.int64),
@@ -152,15 +157,18 @@ def write_network_vtp(
     if clash:
         raise InputError(f"point_data names {clash} are reserved by the network arrays; rename them")
     pore_vals.update(extra_p)
-    pdata = {
+    return {
         "radius": np.concatenate([net.pore_radius, np.repeat(net.throat_radius, 2)]) if tubes
         else net.pore_radius,
-        "is_throat": on_throat.astype(np.uint8),
+        "is_throat": (np.arange(at.size) >= n_p).astype(np.uint8),
         "pore_index": at,
         **{k: v[at] for k, v in pore_vals.items()},
     }
-    points = net.pore_coords[at]
-    line_conn = np.arange(n_p, n_p + 2 * n_t, dtype=np.int64) if tubes else conns.ravel()
+
+
+def _cell_arrays(net: Network, cell_data) -> dict:
+    """The cell arrays: Np pore vertex cells, then Nt throat line cells (user arrays NaN on the pores)."""
+    n_p, n_t = net.n_pores, net.n_throats
     total_len = net.throat_length + net.throat_pore_length.sum(axis=1)
     cdata = {
         "radius": np.concatenate([net.pore_radius, net.throat_radius]),
@@ -179,8 +187,15 @@ def write_network_vtp(
             raise InputError(f"cell_data {name!r} must be numeric, got dtype {a.dtype}")
         pad = np.full((n_p, *a.shape[1:]), np.nan, dtype=a.dtype)
         cdata[name] = np.concatenate([pad, a])
+    return cdata
 
-    parts = [
+
+def _vtp_text(net: Network, at: np.ndarray, pdata: dict, cdata: dict, tubes: bool) -> list[str]:
+    """The VTK XML PolyData file, as pieces of text."""
+    n_p, n_t = net.n_pores, net.n_throats
+    points = net.pore_coords[at]
+    line_conn = np.arange(n_p, n_p + 2 * n_t, dtype=np.int64) if tubes else net.throat_conns.astype(np.int64).ravel()
+    return [
         '<?xml version="1.0"?>\n',
         '<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n',
         "<PolyData>\n",
@@ -205,5 +220,3 @@ def write_network_vtp(
         "</Lines>\n",
         "</Piece>\n</PolyData>\n</VTKFile>\n",
     ]
-    atomic_write_bytes(p, "".join(parts).encode("ascii"))  # atomic, with the umask's permissions
-    return p

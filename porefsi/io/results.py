@@ -99,10 +99,15 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
 
 
 def jsonable(v):
-    """``v`` with numpy values as Python ones and NaN/inf as None (JSON-safe), recursively."""
+    """``v`` with numpy values as Python ones and NaN/inf as None (JSON-safe), recursively.
+
+    The one JSON converter of porefsi (results, summaries, the command line's ``--json``, the case
+    scripts): mappings become dicts with string keys, sequences and sets lists, arrays nested lists,
+    paths strings.
+    """
     if isinstance(v, Mapping):
         return {str(k): jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
+    if isinstance(v, (list, tuple, set, frozenset)):
         return [jsonable(x) for x in v]
     if isinstance(v, np.ndarray):
         return jsonable(v.tolist())

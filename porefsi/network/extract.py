@@ -27,13 +27,17 @@ import numpy as np
 from porefsi.errors import InputError, NetworkError
 from porefsi.image.voxel_image import VoxelImage
 from porefsi.network import _kernels as kern
-from porefsi.network._mb_sections import _constriction_lengths, _sections, _subvoxel_peaks
-from porefsi.network.network import CIRCLE_SHAPE_FACTOR, CONDUCTANCE_MODELS, Network
+from porefsi.network._mb_conduits import (
+    MIN_SEGMENT,
+    conduit_lengths,
+    digital_radius,
+    measure_sections,
+    merge_shallow,
+    subvoxel_radii,
+)
+from porefsi.network.network import CONDUCTANCE_MODELS, Network
 
-__all__ = ["Extraction", "ExtractionInfo", "extract_network", "digital_radius"]
-
-#: Smallest segment length of a conduit, in voxels (keeps every Network length > 0).
-MIN_SEGMENT = 0.05
+__all__ = ["Extraction", "ExtractionInfo", "extract_network", "digital_radius", "MIN_SEGMENT"]
 
 #: Largest uint16 squared distance kept (module constant so a test can force the int32 path).
 _DT2_CAP16 = int(kern.CAP16)
@@ -116,50 +120,6 @@ class Extraction:
 
     def __repr__(self) -> str:
         return f"Extraction({self.network!r}, porosity={self.porosity:.4f})"
-
-
-def _sum_of_three_squares(n: np.ndarray) -> np.ndarray:
-    """Legendre: n >= 0 is a sum of three squares unless n = 4^a (8b + 7)."""
-    m = n.copy()
-    nz = m > 0
-    while True:
-        div4 = nz & (m % 4 == 0)
-        if not div4.any():
-            break
-        m[div4] //= 4
-    return ~(nz & (m % 8 == 7))
-
-
-def digital_radius(dt2: np.ndarray | int) -> np.ndarray:
-    r"""Radius (voxels) of the ball whose centre has squared distance map value ``dt2``.
-
-    ``dt2`` is the squared distance from a voxel centre to the nearest solid voxel centre.
-    The solid boundary lies between that solid centre and the farthest pore centre that can
-    exist closer than it, i.e. at a squared distance equal to the largest sum of three squares
-    below ``dt2``. The radius is the midpoint of the two:
-
-    .. math:: r = \tfrac12\left(\sqrt{d^2} + \sqrt{\max\{m < d^2 : m = a^2 + b^2 + c^2\}}\right)
-
-    so a digitised ball or cylinder of integer radius R (voxel centres within R) is measured
-    as R + O(1/R), and a one-voxel-wide channel as 0.5.
-
-    Parameters
-    ----------
-    dt2 : array_like of int, >= 1
-
-    Returns
-    -------
-    ndarray of float
-        Radius in voxels.
-    """
-    d = np.asarray(dt2, dtype=np.int64)
-    top = int(d.max(initial=1))
-    n = np.arange(top + 1, dtype=np.int64)
-    ok = _sum_of_three_squares(n)
-    # largest representable m < n
-    last = np.maximum.accumulate(np.where(ok, n, 0))
-    prev = np.concatenate(([0], last[:-1]))
-    return 0.5 * (np.sqrt(d) + np.sqrt(prev[d]))
 
 
 def _distance_map(pore: np.ndarray) -> np.ndarray:
@@ -280,224 +240,169 @@ def extract_network(
     >>> ext.network.n_pores, ext.network.n_throats
     (8, 12)
     """
-    min_radius = float(min_radius)
-    extent = float(extent)
-    merge_ratio = float(merge_ratio)
+    min_radius, extent, merge_ratio = float(min_radius), float(extent), float(merge_ratio)
     n_pore = _check(image, min_radius, extent, merge_ratio)
     if conductance is not None and conductance not in CONDUCTANCE_MODELS:
         raise InputError(f"unknown conductance model {conductance!r}; use one of {CONDUCTANCE_MODELS}")
-    pore = image.phases
-    secs: dict[str, float] = {}
-    t_all = t0 = time.perf_counter()
+    laps = _Laps()
+    dt2 = _distance_map(image.phases)
+    laps("edt")
+    centre_idx, labels, counts = _pore_centres(dt2, min_radius, extent, merge_ratio, laps)
+    counts["flooded"] = _flood_regions(dt2, labels, centre_idx, n_pore)
+    laps("flood")
+    top = _pores_and_throats(image.shape, labels, dt2, centre_idx, merge_ratio, extent)
+    laps("throats")
+    if top.conns.shape[0] == 0:
+        raise NetworkError(
+            f"the image yields {top.n_pores} pore(s) and no throat: no two pore regions touch; use a larger "
+            f"image, or lower extent={extent:g} (>= 1; CLI --extent): a shorter family reach splits long "
+            "channels into chains of pores"
+        )
+    geo = _conduits(dt2, labels, top, conductance)
+    laps("sections")
+    del dt2
+    net = _network(image, top, geo, conductance)
+    labels.setflags(write=False)
+    laps("assemble")
+    info = ExtractionInfo(
+        seconds=laps.total(), n_candidate_balls=counts["candidates"], n_maximal_balls=counts["balls"],
+        n_pores=top.n_pores, n_throats=int(top.conns.shape[0]), n_pore_voxels=n_pore,
+        n_labelled_voxels=int(top.count.sum()), n_flooded_voxels=counts["flooded"], min_radius=min_radius,
+        extent=extent, merge_ratio=merge_ratio,
+    )
+    vs = image.voxel_size
+    sections = {
+        "area": geo.sec["area"] * vs**2,
+        "face_area": geo.sec["n_faces"] * vs**2,
+        "wall_perimeter": geo.sec["n_wall"] * vs,
+        "radius": geo.r_throat * vs,
+        "side_length": geo.sec["d"] * vs,
+        "side_throat_length": geo.sec["side_lt"] * vs,
+    }
+    return Extraction(network=net, labels=labels, info=info, sections=sections)
 
-    dt2 = _distance_map(pore)
-    secs["edt"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
+class _Laps:
+    """Wall seconds of the extraction's stages: ``laps(name)`` closes the stage that ran since the last call."""
+
+    def __init__(self):
+        self.seconds: dict[str, float] = {}
+        self._start = self._last = time.perf_counter()
+
+    def __call__(self, stage: str) -> None:
+        now = time.perf_counter()
+        self.seconds[stage] = now - self._last
+        self._last = now
+
+    def total(self) -> dict[str, float]:
+        """The stages and their ``total``, s."""
+        self.seconds["total"] = time.perf_counter() - self._start
+        return self.seconds
+
+
+def _pore_centres(dt2, min_radius: float, extent: float, merge_ratio: float, laps: _Laps):
+    """Stages 2-3: the maximal balls and their master/slave families.
+
+    Returns the flat indices of the master-ball centres (the pores, largest first), the label
+    image (all -1, int32) and the candidate and maximal ball counts.
+    """
     max_d2 = int(dt2.max())
     sqrt_tab = np.sqrt(np.arange(max_d2 + 1, dtype=np.float64))
     min_dt2 = max(1, math.ceil(min_radius * min_radius - 1e-9))
-    labels = np.full(image.shape, -1, np.int32)
+    labels = np.full(dt2.shape, -1, np.int32)
     balls, n_cand = kern._maximal_balls(dt2, np.int64(min_dt2), sqrt_tab, kern.ball_offsets(BALL_TEST_REACH), labels)
-    secs["maximal_balls"] = time.perf_counter() - t0
+    laps("maximal_balls")
     if balls.size == 0:
         raise NetworkError(
             f"no pore found: the largest ball radius in the image is {math.sqrt(max_d2):.3g} voxels, "
             f"below min_radius={min_radius:g}; lower min_radius (>= 1; CLI --min-radius) or use a finer image"
         )
-
-    t0 = time.perf_counter()
     master = kern._families(dt2, balls, sqrt_tab, extent, merge_ratio, labels)
-    n_balls = int(balls.size)
     centre_idx = balls[master == np.arange(balls.size, dtype=np.int32)]
-    del master, balls
-    secs["families"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
+    laps("families")
     labels.fill(-1)
-    labels.reshape(-1)[centre_idx] = np.arange(centre_idx.size, dtype=np.int32)  # one seed voxel each
-    n_seed = int(centre_idx.size)
-    itype = np.int32 if pore.size < np.iinfo(np.int32).max else np.int64
-    n_work = n_pore - n_seed
-    n_flooded = int(kern._flood(dt2, labels, np.empty(n_work, itype), np.empty(n_work, itype)))
-    secs["flood"] = time.perf_counter() - t0
+    return centre_idx, labels, {"candidates": int(n_cand), "balls": int(balls.size)}
 
-    t0 = time.perf_counter()
+
+def _flood_regions(dt2, labels, centre_idx, n_pore: int) -> int:
+    """Stage 4: the priority flood of the distance map from one seed voxel per pore; voxels flooded."""
+    labels.reshape(-1)[centre_idx] = np.arange(centre_idx.size, dtype=np.int32)
+    itype = np.int32 if dt2.size < np.iinfo(np.int32).max else np.int64
+    n_work = n_pore - int(centre_idx.size)
+    return int(kern._flood(dt2, labels, np.empty(n_work, itype), np.empty(n_work, itype)))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Topology:
+    """Pores and throats after merging (voxel units): centres, digital radii, throat interfaces."""
+
+    n_pores: int
+    centre: np.ndarray  # (Np, 3) voxel coordinates of the pore centres
+    r_pore: np.ndarray  # (Np,)
+    conns: np.ndarray  # (Nt, 2)
+    w: np.ndarray  # (Nt,) largest dt2 on each interface
+    point: np.ndarray  # (Nt, 3) throat points
+    count: np.ndarray  # (Np,) voxels of each pore region
+    faces: np.ndarray  # pore_faces of the network
+
+
+def _pores_and_throats(shape, labels, dt2, centre_idx, merge_ratio: float, extent: float) -> _Topology:
+    """Stage 5: label interfaces as throats, pores with no real constriction between them merged."""
     n_p = int(centre_idx.size)
     conns, w, point, _ = kern._interfaces(labels, dt2, np.int64(n_p))
     r_pore = digital_radius(dt2.reshape(-1)[centre_idx])
-    centre = np.stack(np.unravel_index(centre_idx, image.shape), axis=1).astype(float)
-    keep, roots = _merge_shallow(centre, r_pore, conns, digital_radius(np.maximum(w, 1)), merge_ratio, extent)
-    n_merged = n_p - int(keep.max()) - 1
-    if n_merged:
+    centre = np.stack(np.unravel_index(centre_idx, shape), axis=1).astype(float)
+    keep, roots = merge_shallow(centre, r_pore, conns, digital_radius(np.maximum(w, 1)), merge_ratio, extent)
+    if n_p - int(keep.max()) - 1:
         kern._relabel(labels, keep.astype(np.int32))
-        centre_idx, r_pore, centre = centre_idx[roots], r_pore[roots], centre[roots]
+        r_pore, centre = r_pore[roots], centre[roots]
         n_p = int(roots.size)
         conns, w, point, _ = kern._interfaces(labels, dt2, np.int64(n_p))
     count, faces = kern._pore_stats(labels, np.int64(n_p))
-    secs["throats"] = time.perf_counter() - t0
+    return _Topology(n_p, centre, r_pore, conns, w, point, count, faces)
 
-    if conns.shape[0] == 0:
-        raise NetworkError(
-            f"the image yields {n_p} pore(s) and no throat: no two pore regions touch; use a larger "
-            f"image, or lower extent={extent:g} (>= 1; CLI --extent): a shorter family reach splits long "
-            "channels into chains of pores"
-        )
-    t0 = time.perf_counter()
-    r_throat = np.minimum(digital_radius(np.maximum(w, 1)), np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
-    lt, lp = _conduit_lengths(centre, r_pore, conns, r_throat, point)
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Conduits:
+    """Radii, conduit lengths and section measurements (voxel units)."""
+
+    r_pore: np.ndarray
+    r_throat: np.ndarray
+    lt: np.ndarray
+    lp: np.ndarray
+    sec: dict
+
+
+def _conduits(dt2, labels, top: _Topology, conductance) -> _Conduits:
+    """Throat radii (sub-voxel unless the paper's model), conduit lengths and section shape factors."""
+    r_pore, conns = top.r_pore, top.conns
+    r_throat = np.minimum(digital_radius(np.maximum(top.w, 1)), np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
+    lt, lp = conduit_lengths(top.centre, r_pore, conns, r_throat, top.point)
     if conductance != "paper":
-        r_pore, r_throat = _subvoxel_radii(dt2, centre, point, conns, r_pore, r_throat)
-    sec = _measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore)
-    secs["sections"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    del dt2
+        r_pore, r_throat = subvoxel_radii(dt2, top.centre, top.point, conns, r_pore, r_throat)
+    sec = measure_sections(labels, dt2, top.centre, top.point, conns, r_throat, r_pore)
+    return _Conduits(r_pore, r_throat, lt, lp, sec)
+
+
+def _network(image: VoxelImage, top: _Topology, geo: _Conduits, conductance) -> Network:
+    """The :class:`Network` in SI units."""
     vs = image.voxel_size
-    net = Network(
-        pore_coords=image.origin + (centre + 0.5) * vs,
-        pore_radius=r_pore * vs,
-        pore_volume=count * vs**3,
-        throat_conns=conns,
-        throat_radius=r_throat * vs,
-        throat_length=lt * vs,
-        throat_pore_length=lp * vs,
-        pore_faces=faces,
+    return Network(
+        pore_coords=image.origin + (top.centre + 0.5) * vs,
+        pore_radius=geo.r_pore * vs,
+        pore_volume=top.count * vs**3,
+        throat_conns=top.conns,
+        throat_radius=geo.r_throat * vs,
+        throat_length=geo.lt * vs,
+        throat_pore_length=geo.lp * vs,
+        pore_faces=top.faces,
         voxel_size=vs,
         shape=image.shape,
         origin=image.origin,
-        throat_shape_factor=sec["throat_G"],
-        pore_shape_factor=sec["pore_G"],
-        throat_duct_fraction=sec["fraction"],
+        throat_shape_factor=geo.sec["throat_G"],
+        pore_shape_factor=geo.sec["pore_G"],
+        throat_duct_fraction=geo.sec["fraction"],
         conductance=conductance,
     )
-    labels.setflags(write=False)
-    secs["assemble"] = time.perf_counter() - t0
-    secs["total"] = time.perf_counter() - t_all
-    info = ExtractionInfo(
-        seconds=secs,
-        n_candidate_balls=int(n_cand),
-        n_maximal_balls=n_balls,
-        n_pores=n_p,
-        n_throats=int(conns.shape[0]),
-        n_pore_voxels=n_pore,
-        n_labelled_voxels=int(count.sum()),
-        n_flooded_voxels=n_flooded,
-        min_radius=min_radius,
-        extent=extent,
-        merge_ratio=merge_ratio,
-    )
-    sections = {
-        "area": sec["area"] * vs**2,
-        "face_area": sec["n_faces"] * vs**2,
-        "wall_perimeter": sec["n_wall"] * vs,
-        "radius": r_throat * vs,
-        "side_length": sec["d"] * vs,
-        "side_throat_length": sec["side_lt"] * vs,
-    }
-    return Extraction(network=net, labels=labels, info=info, sections=sections)
 
 
-def _radius_table(dt2) -> np.ndarray:
-    """:func:`digital_radius` of every value 0 .. max(dt2) (0 for solid)."""
-    tab = digital_radius(np.maximum(np.arange(int(dt2.max()) + 1), 1))
-    tab[0] = 0.0
-    return tab
-
-
-def _subvoxel_radii(dt2, centre, point, conns, r_pore, r_throat):
-    """Pore and throat radii (voxels), throats corrected for the sub-voxel offset of their centres.
-
-    :func:`porefsi.network._mb_sections._subvoxel_peaks` at the throat points (in the interface
-    plane), never below the digital radius, then clipped to both pore radii. Pore radii stay
-    digital (they also order the pores, largest ball first; their relative error is smaller).
-    On voxelised tubes at random offsets the digital radius reads 0.17-0.33 voxel low on average
-    (radii 1.5-6), the corrected one -0.28..+0.41 (mean +0.06); see ``docs/extraction.md``.
-    """
-    tab = _radius_table(dt2)
-    rt = np.maximum(_subvoxel_peaks(dt2, tab, point, 1), r_throat)
-    rt = np.minimum(rt, np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
-    return r_pore, rt
-
-
-def _measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore):
-    """Shape factors and duct fractions from the voxels (voxel units); see ``docs/extraction.md``.
-
-    Throat: inscribed radius r (the throat radius), section area A = |vector area of the
-    interface| (at least the inscribed circle's), ``G = r^2 / (4 A)`` (the shape factor of a
-    polygon of that area with that inscribed circle, whose perimeter is ``2 A / r``). Pore: the
-    throat-area-weighted mean of its throats' G (pnextract's rule), the circle's for a pore
-    without throats. Duct lengths: each side's resistance-equivalent constriction length
-    (:func:`porefsi.network._mb_sections._constriction_lengths`) makes the throat duct, the rest
-    of the side the pore duct; each at least :data:`MIN_SEGMENT` voxels.
-    """
-    n_p = r_pore.size
-    area_vec, n_faces, n_wall = _sections(labels, conns, np.int64(n_p))
-    area = np.maximum(np.linalg.norm(area_vec, axis=1), np.pi * r_throat**2)
-    throat_G = np.minimum(r_throat**2 / (4.0 * area), CIRCLE_SHAPE_FACTOR)
-    wsum = np.bincount(conns.ravel(), weights=np.repeat(area, 2), minlength=n_p)
-    gsum = np.bincount(conns.ravel(), weights=np.repeat(area * throat_G, 2), minlength=n_p)
-    pore_G = np.where(wsum > 0, gsum / np.where(wsum > 0, wsum, 1.0), CIRCLE_SHAPE_FACTOR)
-    rad_tab = _radius_table(dt2)
-    d, side_lt = _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 0.25)
-    ducts = np.column_stack([d[:, 0] - side_lt[:, 0], side_lt.sum(axis=1), d[:, 1] - side_lt[:, 1]])
-    ducts = np.maximum(ducts, MIN_SEGMENT)
-    return {
-        "area": area, "n_faces": n_faces, "n_wall": n_wall, "throat_G": throat_G, "pore_G": pore_G,
-        "d": d, "side_lt": side_lt, "fraction": ducts / ducts.sum(axis=1, keepdims=True),
-    }
-
-
-def _conduit_lengths(centre, r_pore, conns, r_throat, point):
-    """Cylinder length (Nt,) and pore-side lengths (Nt, 2), voxels; see :func:`extract_network`."""
-    d = np.stack([np.linalg.norm(point - centre[conns[:, s]], axis=1) for s in (0, 1)], axis=1)  # (Nt, 2)
-    rp = r_pore[conns]
-    a = np.sqrt(np.maximum(rp * rp - r_throat[:, None] ** 2, 0.0))
-    lp = np.maximum(np.minimum(d, a), MIN_SEGMENT)
-    total = d.sum(axis=1)
-    lt = total - lp.sum(axis=1)
-    short = lt < MIN_SEGMENT
-    if short.any():
-        scale = (total[short] - MIN_SEGMENT) / lp[short].sum(axis=1)
-        lp[short] *= scale[:, None]
-        lt[short] = MIN_SEGMENT
-    return lt, lp
-
-
-def _merge_shallow(centre, r_pore, conns, r_interface, merge_ratio, extent):
-    """New pore ids (Np,) and surviving old ids after merging pores with no real constriction.
-
-    A throat whose interface radius is at least ``merge_ratio`` times the smaller pore radius
-    does not separate two bodies: the smaller pore is a bump on the larger one's flank (a
-    saddle of the distance map barely below its maximum). Its region joins the larger pore when
-    its centre lies within ``extent`` radii of that pore's centre or it is clearly smaller
-    (``R_small < merge_ratio R_big``): the same rule as the ball hierarchy, so uniform channels
-    stay chains. Throats are taken from the
-    weakest constriction up; returns new ids ``0 .. Np' - 1`` numbered in the order of the
-    surviving pores (so radius descending is kept).
-    """
-    n_p = r_pore.size
-    parent = np.arange(n_p)
-
-    def find(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    if conns.shape[0] and merge_ratio <= 1.0:
-        ratio = r_interface / np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]])
-        for t in np.argsort(-ratio, kind="stable"):
-            if ratio[t] < merge_ratio:
-                break
-            a, b = find(conns[t, 0]), find(conns[t, 1])
-            if a == b:
-                continue
-            big, small = (a, b) if (r_pore[a], -a) >= (r_pore[b], -b) else (b, a)
-            near = np.sum((centre[big] - centre[small]) ** 2) < (extent * r_pore[big]) ** 2
-            if near or r_pore[small] < merge_ratio * r_pore[big]:
-                parent[small] = big
-    top = np.array([find(a) for a in range(n_p)], dtype=np.int64)
-    survivors = np.flatnonzero(top == np.arange(n_p))
-    new_id = np.full(n_p, -1, np.int64)
-    new_id[survivors] = np.arange(survivors.size)
-    return new_id[top], survivors

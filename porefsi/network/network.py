@@ -195,84 +195,14 @@ class Network:
         if coords.ndim != 2 or coords.shape[1] != 3:
             raise InputError(f"Network.pore_coords must have shape (Np, 3), got {coords.shape}")
         n_p = coords.shape[0]
-        conns = np.asarray(self.throat_conns)
-        if conns.size == 0:
-            conns = conns.reshape(0, 2)
-        if conns.ndim != 2 or conns.shape[1] != 2:
-            raise InputError(f"Network.throat_conns must have shape (Nt, 2), got {conns.shape}")
-        if conns.dtype.kind not in "iu":
-            raise InputError(f"Network.throat_conns must be integers, got dtype {conns.dtype}")
-        conns = conns.astype(np.int64)
+        conns = _conns_array(self.throat_conns)
         n_t = conns.shape[0]
-        swapped = None
-        f = {
-            "pore_coords": coords,
-            "pore_radius": _arr("pore_radius", self.pore_radius, float, (n_p,)),
-            "pore_volume": _arr("pore_volume", self.pore_volume, float, (n_p,)),
-            "throat_radius": _arr("throat_radius", self.throat_radius, float, (n_t,)),
-            "throat_length": _arr("throat_length", self.throat_length, float, (n_t,)),
-            "throat_pore_length": _arr("throat_pore_length", self.throat_pore_length, float, (n_t, 2)),
-            "pore_faces": _arr("pore_faces", self.pore_faces, bool, (n_p, 6)),
-            "origin": _arr("origin", self.origin, float, (3,)),
-        }
-        tv = np.zeros(n_t) if self.throat_volume is None else self.throat_volume
-        f["throat_volume"] = _arr("throat_volume", tv, float, (n_t,))
-        if not np.all(np.isfinite(coords)):
-            raise InputError("Network.pore_coords has NaN or infinite entries")
-        for name in ("pore_radius", "pore_volume", "throat_radius", "throat_length", "throat_pore_length"):
-            a = f[name]
-            bad = np.flatnonzero((a <= 0).reshape(a.shape[0], -1).any(axis=1)) if a.size else np.zeros(0, int)
-            if bad.size:
-                raise InputError(f"Network.{name} must be > 0; entry {int(bad[0])} is {f[name][bad[0]]}")
-        if np.any(f["throat_volume"] < 0):
-            raise InputError("Network.throat_volume must be >= 0")
-        if n_t:
-            if conns.min() < 0 or conns.max() >= n_p:
-                raise InputError(
-                    f"Network.throat_conns refers to pores outside 0..{n_p - 1} "
-                    f"(min {int(conns.min())}, max {int(conns.max())}); conns must index pore_coords rows"
-                )
-            loops = np.flatnonzero(conns[:, 0] == conns[:, 1])
-            if loops.size:
-                raise InputError(
-                    f"throat {int(loops[0])} joins pore {int(conns[loops[0], 0])} to itself "
-                    f"({loops.size} such self-loop(s)); drop those rows of throat_conns"
-                )
-            swap = conns[:, 0] > conns[:, 1]
-            if swap.any():
-                conns = conns.copy()
-                conns[swap] = conns[swap, ::-1]
-                tpl = f["throat_pore_length"].copy()
-                tpl[swap] = tpl[swap, ::-1]
-                f["throat_pore_length"] = tpl
-                swapped = swap
-            key = conns[:, 0] * n_p + conns[:, 1]
-            uniq, first, counts = np.unique(key, return_index=True, return_counts=True)
-            if uniq.size != n_t:
-                d = first[np.argmax(counts > 1)]
-                raise InputError(
-                    f"duplicate throat between pores {tuple(int(c) for c in conns[d])} "
-                    f"({n_t - uniq.size} duplicate row(s) in throat_conns, either order); keep one throat per pair"
-                )
-            rmax = np.minimum(f["pore_radius"][conns[:, 0]], f["pore_radius"][conns[:, 1]])
-            wide = np.flatnonzero(f["throat_radius"] > rmax * (1 + _RADIUS_RTOL))
-            if wide.size:
-                t = int(wide[0])
-                raise InputError(
-                    f"throat {t} radius {f['throat_radius'][t]:.4g} m exceeds the smaller of its pore radii "
-                    f"{rmax[t]:.4g} m; clip throat radii to min(pore radii)"
-                )
-        f["throat_conns"] = conns
+        f = _size_fields(self, coords, n_t)
+        f["throat_conns"], swapped = _check_throats(conns, f, n_p)
         f.update(_shape_fields(self, n_p, n_t))
         f["throat_duct_fraction"] = _duct_fraction(self.throat_duct_fraction, n_t, swapped)
         f["voxel_size"] = positive_length(self.voxel_size, "Network.voxel_size")
-        try:
-            shp = tuple(int(s) for s in self.shape)
-        except (TypeError, ValueError):
-            shp = ()
-        if len(shp) != 3 or min(shp) < 1:
-            raise InputError(f"Network.shape must be 3 positive ints (nx, ny, nz), got {self.shape!r}")
-        f["shape"] = shp
+        f["shape"] = _image_shape(self.shape)
         for k, v in f.items():
             if isinstance(v, np.ndarray):
                 v.setflags(write=False)
@@ -340,6 +270,32 @@ class Network:
                 "choose another --axis or a larger image"
             )
 
+    def spanning_clusters(self, axis: str | int) -> tuple[np.ndarray, int, int]:
+        """The pores of the connected clusters that touch both faces of ``axis``.
+
+        The one spanning-cluster search of porefsi (single-phase permeability, drainage).
+
+        Returns
+        -------
+        mask : ndarray of bool, shape (Np,)
+            Pores of a spanning cluster.
+        n_clusters, n_spanning : int
+            Connected clusters of pores (throats as edges), and those touching both faces.
+        """
+        from scipy import sparse
+        from scipy.sparse import csgraph
+
+        ax = axis_index(axis)
+        n_p, conns = self.n_pores, self.throat_conns
+        adj = sparse.coo_array((np.ones(self.n_throats), (conns[:, 0], conns[:, 1])), shape=(n_p, n_p))
+        n_comp, comp = csgraph.connected_components(adj, directed=False)
+        has_in = np.zeros(n_comp, bool)
+        has_out = np.zeros(n_comp, bool)
+        has_in[comp[self.inlet(ax)]] = True
+        has_out[comp[self.outlet(ax)]] = True
+        spanning = has_in & has_out
+        return spanning[comp], int(n_comp), int(spanning.sum())
+
     def replace(self, **changes) -> Network:
         """Return a copy with fields replaced (validated again)."""
         return dataclasses.replace(self, **changes)
@@ -349,3 +305,101 @@ class Network:
             f"Network(n_pores={self.n_pores}, n_throats={self.n_throats}, shape={self.shape}, "
             f"voxel_size={self.voxel_size:.4g} m)"
         )
+
+
+def _conns_array(conns) -> np.ndarray:
+    """``throat_conns`` as an (Nt, 2) int64 array (not yet checked against the pores)."""
+    conns = np.asarray(conns)
+    if conns.size == 0:
+        conns = conns.reshape(0, 2)
+    if conns.ndim != 2 or conns.shape[1] != 2:
+        raise InputError(f"Network.throat_conns must have shape (Nt, 2), got {conns.shape}")
+    if conns.dtype.kind not in "iu":
+        raise InputError(f"Network.throat_conns must be integers, got dtype {conns.dtype}")
+    return conns.astype(np.int64)
+
+
+def _size_fields(net, coords: np.ndarray, n_t: int) -> dict:
+    """The validated size arrays of ``net`` (positive, finite coordinates), by field name."""
+    n_p = coords.shape[0]
+    f = {
+        "pore_coords": coords,
+        "pore_radius": _arr("pore_radius", net.pore_radius, float, (n_p,)),
+        "pore_volume": _arr("pore_volume", net.pore_volume, float, (n_p,)),
+        "throat_radius": _arr("throat_radius", net.throat_radius, float, (n_t,)),
+        "throat_length": _arr("throat_length", net.throat_length, float, (n_t,)),
+        "throat_pore_length": _arr("throat_pore_length", net.throat_pore_length, float, (n_t, 2)),
+        "pore_faces": _arr("pore_faces", net.pore_faces, bool, (n_p, 6)),
+        "origin": _arr("origin", net.origin, float, (3,)),
+    }
+    tv = np.zeros(n_t) if net.throat_volume is None else net.throat_volume
+    f["throat_volume"] = _arr("throat_volume", tv, float, (n_t,))
+    if not np.all(np.isfinite(coords)):
+        raise InputError("Network.pore_coords has NaN or infinite entries")
+    for name in ("pore_radius", "pore_volume", "throat_radius", "throat_length", "throat_pore_length"):
+        a = f[name]
+        bad = np.flatnonzero((a <= 0).reshape(a.shape[0], -1).any(axis=1)) if a.size else np.zeros(0, int)
+        if bad.size:
+            raise InputError(f"Network.{name} must be > 0; entry {int(bad[0])} is {f[name][bad[0]]}")
+    if np.any(f["throat_volume"] < 0):
+        raise InputError("Network.throat_volume must be >= 0")
+    return f
+
+
+def _check_throats(conns: np.ndarray, f: dict, n_p: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """Throats checked against the pores and canonicalised (``conns[:, 0] < conns[:, 1]``).
+
+    Swapped rows also swap ``f["throat_pore_length"]``; returns the conns and which rows were
+    swapped (None: none).
+    """
+    n_t = conns.shape[0]
+    if not n_t:
+        return conns, None
+    if conns.min() < 0 or conns.max() >= n_p:
+        raise InputError(
+            f"Network.throat_conns refers to pores outside 0..{n_p - 1} "
+            f"(min {int(conns.min())}, max {int(conns.max())}); conns must index pore_coords rows"
+        )
+    loops = np.flatnonzero(conns[:, 0] == conns[:, 1])
+    if loops.size:
+        raise InputError(
+            f"throat {int(loops[0])} joins pore {int(conns[loops[0], 0])} to itself "
+            f"({loops.size} such self-loop(s)); drop those rows of throat_conns"
+        )
+    swapped = None
+    swap = conns[:, 0] > conns[:, 1]
+    if swap.any():
+        conns = conns.copy()
+        conns[swap] = conns[swap, ::-1]
+        tpl = f["throat_pore_length"].copy()
+        tpl[swap] = tpl[swap, ::-1]
+        f["throat_pore_length"] = tpl
+        swapped = swap
+    key = conns[:, 0] * n_p + conns[:, 1]
+    uniq, first, counts = np.unique(key, return_index=True, return_counts=True)
+    if uniq.size != n_t:
+        d = first[np.argmax(counts > 1)]
+        raise InputError(
+            f"duplicate throat between pores {tuple(int(c) for c in conns[d])} "
+            f"({n_t - uniq.size} duplicate row(s) in throat_conns, either order); keep one throat per pair"
+        )
+    rmax = np.minimum(f["pore_radius"][conns[:, 0]], f["pore_radius"][conns[:, 1]])
+    wide = np.flatnonzero(f["throat_radius"] > rmax * (1 + _RADIUS_RTOL))
+    if wide.size:
+        t = int(wide[0])
+        raise InputError(
+            f"throat {t} radius {f['throat_radius'][t]:.4g} m exceeds the smaller of its pore radii "
+            f"{rmax[t]:.4g} m; clip throat radii to min(pore radii)"
+        )
+    return conns, swapped
+
+
+def _image_shape(shape) -> tuple:
+    """``Network.shape`` as 3 positive ints."""
+    try:
+        shp = tuple(int(s) for s in shape)
+    except (TypeError, ValueError):
+        shp = ()
+    if len(shp) != 3 or min(shp) < 1:
+        raise InputError(f"Network.shape must be 3 positive ints (nx, ny, nz), got {shape!r}")
+    return shp

@@ -1,6 +1,7 @@
 """porefsi.solid: the rock frame as a nonlinear elastic solid meshed from the image.
 
-scikit-fem is imported only in this package. The public pieces:
+scikit-fem is imported only in this package (and only when a name that needs it is used). The
+public pieces:
 
 - :func:`mesh_solid` -> :class:`MeshResult` (a :class:`SolidMesh`, removed floating solid);
 - materials :class:`StVenantKirchhoff`, :class:`NeoHookean` (E, nu, density);
@@ -10,21 +11,81 @@ scikit-fem is imported only in this package. The public pieces:
 - :func:`solve_static`, :func:`uniaxial_compression`; stress recovery in :mod:`porefsi.solid.stress`.
 """
 
-from porefsi.solid.bc import Affine, Fixed, Prescribed, Roller, Traction, uniaxial_bcs
-from porefsi.solid.linsolve import AMGSolverFactory, direct_solver_factory, jacobi_solver_factory
-from porefsi.solid.materials import NeoHookean, StVenantKirchhoff, make_material
-from porefsi.solid.mesh import FACE_NAMES, FACET_TAGS, PORE_WALL, MeshResult, SolidMesh, mesh_solid
-from porefsi.solid.model import SolidModel
-from porefsi.solid.shapes import box_mesh, shell_octant_mesh
-from porefsi.solid.static import solve_static, uniaxial_compression
-from porefsi.solid.stress import effective_modulus, element_cauchy, nodal_average, von_mises
+from porefsi._lazy import exports
+
+#: Public name -> the module that defines it (imported on first use).
+_EXPORTS = {
+    "SolidMesh": "porefsi.solid.mesh",
+    "MeshResult": "porefsi.solid.mesh",
+    "mesh_solid": "porefsi.solid.mesh",
+    "FACET_TAGS": "porefsi.solid.mesh",
+    "FACE_NAMES": "porefsi.solid.mesh",
+    "PORE_WALL": "porefsi.solid.mesh",
+    "tet_volumes": "porefsi.solid.mesh",
+    "box_mesh": "porefsi.solid.shapes",
+    "shell_octant_mesh": "porefsi.solid.shapes",
+    "Material": "porefsi.solid.materials",
+    "StVenantKirchhoff": "porefsi.solid.materials",
+    "NeoHookean": "porefsi.solid.materials",
+    "make_material": "porefsi.solid.materials",
+    "MATERIALS": "porefsi.solid.materials",
+    "Fixed": "porefsi.solid.bc",
+    "Roller": "porefsi.solid.bc",
+    "Prescribed": "porefsi.solid.bc",
+    "Affine": "porefsi.solid.bc",
+    "Traction": "porefsi.solid.bc",
+    "uniaxial_bcs": "porefsi.solid.bc",
+    "check_load_path": "porefsi.solid.bc",
+    "midpoint_nodes": "porefsi.solid.bc",
+    "SolidModel": "porefsi.solid.model",
+    "AMGSolverFactory": "porefsi.solid.linsolve",
+    "jacobi_solver_factory": "porefsi.solid.linsolve",
+    "direct_solver_factory": "porefsi.solid.linsolve",
+    "solve_static": "porefsi.solid.static",
+    "uniaxial_compression": "porefsi.solid.static",
+    "UniaxialResult": "porefsi.solid.static",
+    "NewtonInfo": "porefsi.solid.static",
+    "element_cauchy": "porefsi.solid.stress",
+    "von_mises": "porefsi.solid.stress",
+    "nodal_average": "porefsi.solid.stress",
+    "effective_modulus": "porefsi.solid.stress",
+}
 
 __all__ = [
-    "SolidMesh", "MeshResult", "mesh_solid", "FACET_TAGS", "FACE_NAMES", "PORE_WALL",
-    "box_mesh", "shell_octant_mesh",
-    "StVenantKirchhoff", "NeoHookean", "make_material",
-    "Fixed", "Roller", "Prescribed", "Affine", "Traction", "uniaxial_bcs",
-    "SolidModel", "AMGSolverFactory", "jacobi_solver_factory", "direct_solver_factory",
-    "solve_static", "uniaxial_compression",
-    "element_cauchy", "von_mises", "nodal_average", "effective_modulus",
+    "SolidMesh",
+    "MeshResult",
+    "mesh_solid",
+    "FACET_TAGS",
+    "FACE_NAMES",
+    "PORE_WALL",
+    "tet_volumes",
+    "box_mesh",
+    "shell_octant_mesh",
+    "Material",
+    "StVenantKirchhoff",
+    "NeoHookean",
+    "make_material",
+    "MATERIALS",
+    "Fixed",
+    "Roller",
+    "Prescribed",
+    "Affine",
+    "Traction",
+    "uniaxial_bcs",
+    "check_load_path",
+    "midpoint_nodes",
+    "SolidModel",
+    "AMGSolverFactory",
+    "jacobi_solver_factory",
+    "direct_solver_factory",
+    "solve_static",
+    "uniaxial_compression",
+    "UniaxialResult",
+    "NewtonInfo",
+    "element_cauchy",
+    "von_mises",
+    "nodal_average",
+    "effective_modulus",
 ]
+
+__getattr__, __dir__ = exports(__name__, _EXPORTS)

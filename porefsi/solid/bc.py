@@ -8,7 +8,7 @@ them out of a lumped or consistent mass system adds no inertial load.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -94,11 +94,13 @@ class Traction:
     """Dead surface load on the facets tagged ``tag``: a traction vector (Pa) and/or a pressure.
 
     ``pressure`` p pushes on the solid (traction ``-p N``, N the outward reference normal).
+    ``factor`` (``t -> float``, optional) scales the load in time (default: constant).
     """
 
     tag: str
     traction: tuple[float, float, float] | None = None
     pressure: float | None = None
+    factor: Callable[[float], float] | None = None
 
     def __post_init__(self):
         if self.tag not in FACET_TAGS:

@@ -7,9 +7,11 @@ axes (elements, quadrature points): ``F`` of shape (3, 3, ...).
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import numpy as np
 
+from porefsi._schema import Limits
 from porefsi.errors import InputError, MeshError
 
 __all__ = ["Material", "StVenantKirchhoff", "NeoHookean", "make_material", "MATERIALS"]
@@ -35,17 +37,21 @@ class Material:
     #: integer code used by the numba kernels
     kind = -1
     name = "material"
+    #: Allowed values of each parameter (the case file's bounds are these).
+    LIMITS: ClassVar[dict[str, Limits]] = {"E": Limits(0.0, None, lo_open=True),
+                                           "nu": Limits(-1.0, 0.5, lo_open=True, hi_open=True),
+                                           "density": Limits(0.0, None, lo_open=True)}
 
     def __post_init__(self):
         E, nu, rho = float(self.E), float(self.nu), float(self.density)
-        if not np.isfinite(E) or E <= 0:
+        if not np.isfinite(E) or not self.LIMITS["E"].contains(E):
             raise InputError(f"Young's modulus must be positive (Pa), got E={self.E!r}; rock is ~1e9-1e11 Pa")
-        if not np.isfinite(nu) or not (-1.0 < nu < 0.5):
+        if not np.isfinite(nu) or not self.LIMITS["nu"].contains(nu):
             raise InputError(
                 f"Poisson ratio must be in (-1, 0.5), got nu={self.nu!r}; nu >= 0.5 is incompressible "
                 "and needs a mixed formulation (sandstone: ~0.1-0.3)"
             )
-        if not np.isfinite(rho) or rho <= 0:
+        if not np.isfinite(rho) or not self.LIMITS["density"].contains(rho):
             raise InputError(f"density must be positive (kg/m^3), got {self.density!r}")
         object.__setattr__(self, "E", E)
         object.__setattr__(self, "nu", nu)

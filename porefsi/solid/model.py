@@ -12,14 +12,14 @@ motion is affine in t, :math:`\ddot u_D = 0` and the mass couples no load from i
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import scipy.sparse as sp
 
 from porefsi.errors import InputError
 from porefsi.solid import forms
-from porefsi.solid.assembly import P1Assembler, submatrix_selector
+from porefsi.solid.assembly import P1Assembler, p1_gradients, submatrix_selector
 from porefsi.solid.bc import Constraints, Traction
 from porefsi.solid.linsolve import (
     AdaptiveSolverFactory,
@@ -47,9 +47,7 @@ class SolidModel:
     bcs : sequence of Fixed / Roller / Prescribed
         Dirichlet conditions (see :mod:`porefsi.solid.bc`).
     tractions : sequence of Traction, optional
-        Dead surface loads on tagged facets, scaled by ``load_factor(t)``.
-    load_factor : callable, optional
-        ``t -> float`` multiplying the tractions (default 1).
+        Dead surface loads on tagged facets (each scaled in time by its ``factor``, if any).
     nodal_forces : ndarray (Nn, 3) or callable ``t -> (Nn, 3)``, optional
         Forces (N) on the mesh vertices, e.g. pore-pressure forces from the coupling; for P2
         also shape (n_full / 3, 3), forces on every Lagrange node (vertices, then edge
@@ -70,8 +68,8 @@ class SolidModel:
     """
 
     def __init__(self, mesh: SolidMesh, material: Material, bcs: Sequence = (), *,
-                 tractions: Sequence[Traction] = (), load_factor: Callable[[float], float] | None = None,
-                 nodal_forces=None, order: int = 1, backend: str = "auto", linear_solver: str = "auto"):
+                 tractions: Sequence[Traction] = (), nodal_forces=None, order: int = 1, backend: str = "auto",
+                 linear_solver: str = "auto"):
         if not isinstance(mesh, SolidMesh):
             raise InputError(f"mesh must be a SolidMesh, got {type(mesh).__name__}")
         if not isinstance(material, Material):
@@ -96,12 +94,16 @@ class SolidModel:
         self._p1 = P1Assembler(mesh, material) if self.backend == "numba" else None
         if self._p1 is not None:
             self._sel = submatrix_selector(self._p1.indptr, self._p1.indices, self.free)
-        self._traction_vec = np.zeros(self.n_full)
+        self._traction_vec = np.zeros(self.n_full)  # the constant tractions
+        self._timed = []  # (factor, load) of the tractions that vary in time
         for tr in tractions:
-            self._traction_vec += forms.facet_load(self.feb, mesh.facets_tagged(FACET_TAGS[tr.tag]),
-                                                   traction=tr.traction, pressure=tr.pressure)
+            vec = forms.facet_load(self.feb, mesh.facets_tagged(FACET_TAGS[tr.tag]), traction=tr.traction,
+                                   pressure=tr.pressure)
+            if tr.factor is None:
+                self._traction_vec += vec
+            else:
+                self._timed.append((tr.factor, vec))
         self.tractions = tuple(tractions)
-        self.load_factor = load_factor
         self._nodal = None
         self._set_nodal(nodal_forces)
         self._mass = None
@@ -129,8 +131,9 @@ class SolidModel:
 
     def full_external_force(self, t: float) -> np.ndarray:
         """External load on all dofs, N, shape (n_full,)."""
-        s = 1.0 if self.load_factor is None else float(self.load_factor(t))
-        f = s * self._traction_vec
+        f = 1.0 * self._traction_vec
+        for factor, vec in self._timed:
+            f = f + float(factor(t)) * vec
         if self._nodal is not None:
             F = self._nodal(t) if callable(self._nodal) else self._nodal
             F = np.asarray(F, dtype=float)
@@ -153,6 +156,13 @@ class SolidModel:
         if self._feb is None:
             self._feb = forms.make_basis(self.mesh, self.order)
         return self._feb
+
+    def vertex_gradients(self) -> np.ndarray:
+        """Gradients of the P1 (vertex) shape functions of every tetrahedron, (Ne, 4, 3), 1/m.
+
+        The fast path's assembler keeps them; otherwise they are computed from the mesh.
+        """
+        return self._p1.dN if self._p1 is not None else p1_gradients(self.mesh)[0]
 
     def full_displacement(self, u: np.ndarray, t: float) -> np.ndarray:
         """All dofs (n_full,) from the free dofs ``u`` (n,) and the prescribed motion at t."""

@@ -31,10 +31,7 @@ def element_cauchy(model, u: np.ndarray, t: float) -> np.ndarray:
     full = model.full_displacement(u, t)
     feb = model.feb
     if feb.order == 1:
-        from porefsi.solid.assembly import p1_gradients
-
-        p1 = getattr(model, "_p1", None)  # the fast path's assembler keeps the gradients
-        dN = p1.dN if p1 is not None else p1_gradients(model.mesh)[0]
+        dN = model.vertex_gradients()
         ue = full.reshape(-1, 3)[model.mesh.tets]  # (Ne, 4, 3)
         H = np.moveaxis(np.matmul(ue.transpose(0, 2, 1), dN), 0, -1)  # H_iJ = sum_a u_ai dN_aJ, (3, 3, Ne)
     else:

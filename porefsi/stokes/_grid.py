@@ -64,44 +64,46 @@ class StaggeredSystem:
 
     Attributes
     ----------
-    shape : tuple of 3 int
-        Working domain (image plus buffer layers or mirror copy).
+    pore : ndarray of bool, shape (nx, ny, nz)
+        The working domain (image plus buffer layers or mirror copy).
     n_planes : tuple of 3 int
         Face planes per axis: ``N_d`` if periodic, ``N_d + 1`` if bounded.
     offsets : ndarray of int64, shape (4,)
         Start of each velocity component in the velocity vector; ``offsets[3]`` = n_u.
-    neighbours : ndarray of int32, shape (n_u, 6)
-        Neighbour face ids (slots: normal before/after, then the two other axes), -1 = none.
     diag : ndarray of float32, shape (n_u,)
         Diagonal of the velocity block (links plus wall terms; sums of 1/2, 1 and 2, exact in float32).
     half : ndarray of uint8, shape (n_u,)
         1 for faces on an open box face (half control volume: tangential links weigh 1/2).
     p_lo, p_hi : ndarray of int32, shape (n_u,)
         Pressure unknowns of the voxels before and after each face, -1 for a reservoir.
-    face_cell : ndarray of int32 (int64 for boxes of 2^31 faces or more), shape (n_u,)
-        Flat index of each face in its component's plane array (shape ``shape`` with
-        ``n_planes[d]`` along d).
-    pressure_cell : ndarray of int64, shape (n_p,)
+    pressure_cell : ndarray of int32 (int64 for 2^31 voxels or more), shape (n_p,)
         Flat index of each pressure unknown's voxel in the working domain.
-    rhs_u : ndarray of float, shape (n_u,)
-        Momentum right-hand side: reservoir pressures and body force times control volume.
     periodic : tuple of 3 bool
     open_axis : int or None
+    drive : tuple of (int or None, float, float, float)
+        ``(body_axis, body_force, p_in, p_out)``.
+    neighbours : ndarray of int32, shape (n_u, 6), or None
+        Neighbour face ids (slots: normal before/after, then the two other axes), -1 = none;
+        None until :func:`with_neighbours` (built last: the pressure preconditioner does not need it).
     """
 
-    shape: tuple
+    pore: np.ndarray
     n_planes: tuple
     offsets: np.ndarray
-    neighbours: np.ndarray
     diag: np.ndarray
     half: np.ndarray
     p_lo: np.ndarray
     p_hi: np.ndarray
-    face_cell: np.ndarray
     pressure_cell: np.ndarray
-    rhs_u: np.ndarray
     periodic: tuple
     open_axis: int | None
+    drive: tuple
+    neighbours: np.ndarray | None = None
+
+    @property
+    def shape(self) -> tuple:
+        """Shape of the working domain."""
+        return tuple(int(n) for n in self.pore.shape)
 
     @property
     def n_p(self) -> int:
@@ -119,21 +121,42 @@ class StaggeredSystem:
         s[d] = self.n_planes[d]
         return tuple(s)
 
+    def face_cells(self, d: int) -> np.ndarray:
+        """Flat index, in the face array of axis ``d``, of every face of component ``d`` (in id order)."""
+        fid, _ = kern.number_faces(self.pore, d, self.n_planes[d], self.periodic, _oa(self.open_axis), 0)
+        return np.flatnonzero(fid.reshape(-1) >= 0)
+
     def face_plane(self, d: int) -> np.ndarray:
         """Plane index (coordinate along d) of every face of component ``d``."""
-        cells = self.face_cell[self.offsets[d]:self.offsets[d + 1]]
-        return np.unravel_index(cells, self.plane_shape(d))[d]
+        return np.unravel_index(self.face_cells(d), self.plane_shape(d))[d]
+
+    def rhs_u(self) -> np.ndarray:
+        """Momentum right-hand side, shape (n_u,): reservoir pressures on the open box faces, body force."""
+        body_axis, body_force, p_in, p_out = self.drive
+        rhs = np.zeros(self.n_u)
+        if body_axis is not None and body_force:
+            rhs[self.offsets[body_axis]:self.offsets[body_axis + 1]] = body_force
+        if self.open_axis is not None:
+            sl = slice(self.offsets[self.open_axis], self.offsets[self.open_axis + 1])
+            rhs[sl] += np.where(self.p_lo[sl] < 0, p_in, 0.0) - np.where(self.p_hi[sl] < 0, p_out, 0.0)
+        return rhs
 
     @property
     def nbytes(self) -> int:
         """Bytes held by the tables."""
-        return int(sum(a.nbytes for a in (self.neighbours, self.diag, self.half, self.p_lo, self.p_hi,
-                                           self.face_cell, self.pressure_cell, self.rhs_u)))
+        arrays = [self.pore, self.diag, self.half, self.p_lo, self.p_hi, self.pressure_cell]
+        if self.neighbours is not None:
+            arrays.append(self.neighbours)
+        return int(sum(a.nbytes for a in arrays))
+
+
+def _oa(open_axis):
+    return -1 if open_axis is None else int(open_axis)
 
 
 def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int | None = None,
              body_axis: int | None = None, body_force: float = 0.0,
-             p_in: float = 1.0, p_out: float = 0.0) -> StaggeredSystem:
+             p_in: float = 1.0, p_out: float = 0.0, neighbours: bool = True) -> StaggeredSystem:
     r"""Build the MAC Stokes system on ``pore`` (voxel units, :math:`\mu = 1`).
 
     Parameters
@@ -149,6 +172,8 @@ def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int
         (every control volume is then a whole voxel).
     body_force, p_in, p_out : float
         Driving terms, voxel units.
+    neighbours : bool, default True
+        Also build the neighbour table (else call :func:`with_neighbours` later).
 
     Returns
     -------
@@ -159,34 +184,39 @@ def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int
     pore = np.ascontiguousarray(pore, dtype=bool)
     shape = pore.shape
     periodic = tuple(bool(x) for x in periodic)
-    oa = -1 if open_axis is None else int(open_axis)
+    oa = _oa(open_axis)
     n_planes = tuple(shape[d] if periodic[d] else shape[d] + 1 for d in range(3))
     pressure_cell = np.flatnonzero(pore)
-    pid = np.full(shape, -1, dtype=np.int32)
-    pid.reshape(-1)[pressure_cell] = np.arange(pressure_cell.size, dtype=np.int32)
-    counts = []
-    for d in range(3):
-        _, c = kern.number_faces(pore, d, n_planes[d], periodic, oa, 0)
-        counts.append(c)
+    if pore.size < 2**31:
+        pressure_cell = pressure_cell.astype(np.int32)
+    counts = [kern.number_faces(pore, d, n_planes[d], periodic, oa, 0)[1] for d in range(3)]
     offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     n_u = int(offsets[3])
-    nb = np.empty((n_u, 6), dtype=np.int32)
     diag = np.empty(n_u, dtype=np.float32)  # exact: sums of 1/2, 1 and 2
     half = np.empty(n_u, dtype=np.uint8)
     plo = np.empty(n_u, dtype=np.int32)
     phi = np.empty(n_u, dtype=np.int32)
-    big = (shape[0] + 1) * (shape[1] + 1) * (shape[2] + 1) >= 2**31
-    cell = np.empty(n_u, dtype=np.int64 if big else np.int32)
-    rhs = np.zeros(n_u)
+    system = StaggeredSystem(pore, n_planes, offsets, diag, half, plo, phi, pressure_cell, periodic, open_axis,
+                             (body_axis, float(body_force), float(p_in), float(p_out)))
+    _fill(system, None)
+    return with_neighbours(system) if neighbours else system
+
+
+def with_neighbours(system: StaggeredSystem) -> StaggeredSystem:
+    """``system`` with its neighbour table built."""
+    nb = np.empty((system.n_u, 6), dtype=np.int32)
+    _fill(system, nb)
+    return dataclasses.replace(system, neighbours=nb)
+
+
+def _fill(system: StaggeredSystem, nb) -> None:
+    """Run the table kernel per axis: coupling tables (``nb`` None) or the neighbour table."""
+    pid = np.full(system.shape, -1, dtype=np.int32)
+    pid.reshape(-1)[system.pressure_cell] = np.arange(system.n_p, dtype=np.int32)
+    want = nb is not None
+    table = nb if want else np.empty((1, 6), dtype=np.int32)
+    oa = _oa(system.open_axis)
     for d in range(3):
-        fid, _ = kern.number_faces(pore, d, n_planes[d], periodic, oa, int(offsets[d]))
-        kern.face_tables(pore, pid, fid, d, periodic, oa, nb, diag, half, plo, phi, cell)
-        sl = slice(offsets[d], offsets[d + 1])
-        plane = np.unravel_index(cell[sl], fid.shape)[d]
-        if d == body_axis and body_force:
-            rhs[sl] += body_force
-        if d == open_axis:
-            rhs[sl] += np.where(plane == 0, p_in, 0.0) - np.where(plane == n_planes[d] - 1, p_out, 0.0)
-        del fid
-    return StaggeredSystem(tuple(shape), n_planes, offsets, nb, diag, half, plo, phi, cell, pressure_cell, rhs,
-                           periodic, open_axis)
+        fid, _ = kern.number_faces(system.pore, d, system.n_planes[d], system.periodic, oa, int(system.offsets[d]))
+        kern.face_tables(system.pore, pid, fid, d, system.periodic, oa, table, system.diag, system.half,
+                         system.p_lo, system.p_hi, want)

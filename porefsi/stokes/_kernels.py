@@ -80,12 +80,13 @@ def number_faces(pore, d, n_planes, periodic, open_axis, offset):
 
 
 @jit
-def face_tables(pore, pid, fid, d, periodic, open_axis, nb, diag, half, plo, phi, cell):
+def face_tables(pore, pid, fid, d, periodic, open_axis, nb, diag, half, plo, phi, want_nb):
     """Fill the stencil tables of the open faces of axis ``d`` (ids from ``fid``; arrays global-indexed).
 
-    nb : (n_u, 6) int32, diag : (n_u,) float32, half : (n_u,) uint8 (1 = half control volume on an
-    open box face), plo/phi : (n_u,) int32 pressure ids of the voxels before/after (-1 = reservoir),
-    cell : (n_u,) int32 or int64 flat index of the face in ``fid``.
+    nb : (n_u, 6) int32 (written only if ``want_nb``), diag : (n_u,) float32, half : (n_u,) uint8
+    (1 = half control volume on an open box face), plo/phi : (n_u,) int32 pressure ids of the voxels
+    before/after (-1 = reservoir). Two passes (coupling first, neighbours later) let the pressure
+    preconditioner be built before the neighbour table exists (lower peak memory).
     """
     n_planes = fid.shape[d]
     t1 = 0 if d != 0 else 1
@@ -101,13 +102,13 @@ def face_tables(pore, pid, fid, d, periodic, open_axis, nb, diag, half, plo, phi
                 boundary = open_axis == d and (c[d] == 0 or c[d] == n_planes - 1)
                 w_t = 0.5 if boundary else 1.0
                 half[f] = 1 if boundary else 0
-                cell[f] = (i * fid.shape[1] + j) * fid.shape[2] + k
                 dg = 0.0
                 for s in range(6):
                     e = axes[s // 2]
                     q = [i, j, k]
                     q[e] += -1 if s % 2 == 0 else 1
-                    nb[f, s] = -1
+                    if want_nb:
+                        nb[f, s] = -1
                     lim = fid.shape[e]
                     w = 1.0 if e == d else w_t
                     if not 0 <= q[e] < lim:
@@ -122,7 +123,8 @@ def face_tables(pore, pid, fid, d, periodic, open_axis, nb, diag, half, plo, phi
                     if g == f:
                         continue  # periodic axis one voxel long: the face is its own neighbour, no net term
                     if g >= 0:
-                        nb[f, s] = g
+                        if want_nb:
+                            nb[f, s] = g
                         dg += w
                     elif e == d:
                         dg += w * POINT_WALL  # a wall face a whole voxel away
@@ -302,3 +304,59 @@ def schur_csr(plo, phi, diag, n_p):
             data[p] = -w
             fill[hi] += 1
     return indptr, indices, data
+
+
+@jit
+def pressure_faces(plo, phi, offsets, n_p):
+    """(n_p, 6) int32 table of each pressure voxel's faces (slots: axis 0 low/high side, axis 1, axis 2).
+
+    -1 where the face is a wall. A face whose two sides are the same voxel (periodic axis one voxel
+    long) is left out: its divergence column is zero.
+    """
+    pf = np.full((n_p, 6), -1, dtype=np.int32)
+    for d in range(3):
+        for f in range(offsets[d], offsets[d + 1]):
+            lo, hi = plo[f], phi[f]
+            if lo == hi:
+                continue
+            if lo >= 0:
+                pf[lo, 2 * d + 1] = f
+            if hi >= 0:
+                pf[hi, 2 * d] = f
+    return pf
+
+
+@jit
+def _schur_row(pf, plo, phi, diag, x, c):
+    """Return (diagonal, sum of w x_other) of row ``c`` of B diag(A)^-1 B^T."""
+    dg = 0.0
+    off = 0.0
+    for s in range(6):
+        f = pf[c, s]
+        if f < 0:
+            continue
+        w = 1.0 / diag[f]
+        dg += w
+        o = phi[f] if plo[f] == c else plo[f]
+        if o >= 0:
+            off += w * x[o]
+    return dg * (1.0 + 1e-12), off  # the 1e-12 keeps periodic or closed clusters definite
+
+
+@jit
+def schur_residual(pf, plo, phi, diag, b, x, r):
+    """Write r = b - S x, S = B diag(A)^-1 B^T (matrix-free)."""
+    for c in range(b.shape[0]):
+        dg, off = _schur_row(pf, plo, phi, diag, x, c)
+        r[c] = b[c] - (dg * x[c] - off)
+
+
+@jit
+def schur_symmetric_gauss_seidel(pf, plo, phi, diag, b, x):
+    """One forward then one backward Gauss-Seidel sweep on S x = b, in place (matrix-free)."""
+    n = b.shape[0]
+    for sweep in range(2):
+        for m in range(n):
+            c = m if sweep == 0 else n - 1 - m
+            dg, off = _schur_row(pf, plo, phi, diag, x, c)
+            x[c] = (b[c] + off) / dg if dg > 0.0 else 0.0  # a voxel with no open face: a null row

@@ -8,7 +8,7 @@ blocks symmetric positive definite (MINRES needs that):
   conditioned in porous media: the sweep needed fewer MINRES iterations than one smoothed-aggregation
   AMG V-cycle per block, on rock and on sphere arrays, at a fraction of the cost (measured in
   ``docs/stokes.md``);
-* :math:`\hat S^{-1}`: one AMG V-cycle (pyamg smoothed aggregation) on :math:`B D^{-1} B^T`,
+* :math:`\hat S^{-1}`: one smoothed-aggregation V-cycle (:mod:`._pressure`) on :math:`B D^{-1} B^T`,
   :math:`D = \operatorname{diag}(A)`, the pressure Laplacian SIMPLE-type methods use for the
   Schur complement :math:`S = B A^{-1} B^T`. A scaled pressure mass matrix (the textbook choice
   for Stokes) misses the Darcy-like behaviour of :math:`S` on pressure modes smoother than the
@@ -21,11 +21,11 @@ import dataclasses
 import time
 
 import numpy as np
-import pyamg
 import scipy.sparse as sp
 
 from porefsi.stokes import _kernels as kern
 from porefsi.stokes._grid import StaggeredSystem
+from porefsi.stokes._pressure import PressureMultigrid
 
 __all__ = ["SolveInfo", "solve", "schur_approximation", "N_VECTORS"]
 
@@ -71,34 +71,12 @@ def schur_approximation(system: StaggeredSystem) -> sp.csr_matrix:
     return S
 
 
-def _hierarchy_nbytes(ml) -> int:
-    """Bytes of an AMG hierarchy's matrices (every level's A, P, R)."""
-    return sum(_nbytes(getattr(lev, name)) for lev in ml.levels for name in ("A", "P")
-               if sp.issparse(getattr(lev, name, None)))
+def pressure_preconditioner(system: StaggeredSystem) -> PressureMultigrid:
+    """The V-cycle for :func:`schur_approximation` (see :mod:`porefsi.stokes._pressure`)."""
+    return PressureMultigrid(system, schur_approximation(system))
 
 
-def _nbytes(M) -> int:
-    return int(M.data.nbytes + M.indices.nbytes + M.indptr.nbytes)
-
-
-def pressure_preconditioner(system: StaggeredSystem):
-    """Smoothed-aggregation AMG hierarchy of :func:`schur_approximation` (symmetric V-cycle)."""
-    S = schur_approximation(system)
-    S.data[S.indptr[:-1]] *= 1.0 + 1e-12  # diagonal first: periodic/closed clusters stay definite
-    ml = pyamg.smoothed_aggregation_solver(  # strength=None: S itself (no copy); theta=0 would keep all of S anyway
-        S, symmetry="symmetric", max_coarse=500, strength=None,
-        presmoother=("gauss_seidel", {"sweep": "symmetric"}),
-        postsmoother=("gauss_seidel", {"sweep": "symmetric"}),
-    )
-    for lev in ml.levels:  # pyamg keeps coarse levels as 1x1-block BSR: CSR smooths 1.7x faster (measured)
-        lev.A = lev.A.tocsr()
-        if sp.issparse(getattr(lev, "P", None)):
-            lev.P = lev.P.tocsr()
-            lev.R = lev.P.T  # a transposed view: R = P^T without a second copy (-20 % memory)
-    return ml
-
-
-def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000):
+def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000, preconditioner=None):
     r"""Solve the Stokes system; return ``(u, p, SolveInfo)`` (voxel units).
 
     Parameters
@@ -108,12 +86,16 @@ def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000):
         Relative reduction of the preconditioned residual norm at which to stop.
     maxiter : int
         Iteration limit (``SolveInfo.converged`` is False when it is reached).
+    preconditioner : PressureMultigrid, optional
+        :func:`pressure_preconditioner` of ``system``, when built earlier (before the neighbour
+        table, to lower the peak memory).
     """
     t0 = time.perf_counter()
     n_u = system.n_u
-    ml = pressure_preconditioner(system)
-    prec_s = ml.aspreconditioner(cycle="V")
-    mem = system.nbytes + _hierarchy_nbytes(ml) + N_VECTORS * 8 * (n_u + system.n_p)  # + pyamg's temporaries
+    prec_s = pressure_preconditioner(system) if preconditioner is None else preconditioner
+    if system.neighbours is None:
+        raise ValueError("build the neighbour table first (porefsi.stokes._grid.with_neighbours)")
+    mem = system.nbytes + prec_s.nbytes + N_VECTORS * 8 * (n_u + system.n_p)  # + pyamg's temporaries
     tables = (system.neighbours, system.diag, system.half, system.p_lo, system.p_hi)
 
     def precvec(v, out):
@@ -125,14 +107,15 @@ def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000):
     t2 = time.perf_counter()
     r = np.empty_like(x)
     kern.stokes_matvec(*tables, x, n_u, r)
-    r[:n_u] -= system.rhs_u
-    res = float(np.linalg.norm(r) / np.linalg.norm(system.rhs_u))
+    rhs = system.rhs_u()
+    r[:n_u] -= rhs
+    res = float(np.linalg.norm(r) / np.linalg.norm(rhs))
     del r
     return x[:n_u], x[n_u:], SolveInfo(its, res, ok, t1 - t0, t2 - t1, np.asarray(hist), int(mem))
 
 
 def _rhs(system: StaggeredSystem) -> np.ndarray:
-    return np.concatenate([system.rhs_u, np.zeros(system.n_p)])
+    return np.concatenate([system.rhs_u(), np.zeros(system.n_p)])
 
 
 def minres(tables, n_u, precvec, b, *, rtol, maxiter):

@@ -1,4 +1,4 @@
-"""Warnings for physical inputs that are allowed but probably a mistake (private).
+"""Warnings for physical inputs of a drainage that are allowed but probably a mistake.
 
 Each warning is a :class:`porefsi.image.io.PlausibilityWarning` naming the likely cause; the
 command line prints it as one ``porefsi: warning: ...`` line and goes on.
