@@ -10,8 +10,10 @@ trapping on the same network and fluids). With ``-o DIR`` the run is saved to
 ``DIR/drainage_checkpoint.npz`` every ``--checkpoint-every`` seconds (a progress line on stderr
 each time); ``--resume`` continues a killed run from it, to the same result bit for bit. A
 fresh run first removes what an earlier run wrote in DIR (those file names only). A progress line
-goes to stderr every 5 s when stderr is not a terminal (logs of batch jobs), every 10 s when it
-is, with or without ``-o``. ``--scheme adaptive`` runs the adaptive scheme (docs/drainage.md).
+(simulated time, saturation, inlet pressure, events, full pores, wall seconds) goes to stderr
+every ``--progress-every`` seconds: 5 s by default when stderr is not a terminal (logs of batch
+jobs), 10 s when it is; the first once the inputs are checked and the run starts, with or without ``-o``.
+``--scheme adaptive`` runs the adaptive scheme (docs/drainage.md).
 """
 
 from __future__ import annotations
@@ -64,6 +66,9 @@ def register(subparsers) -> None:
     p.add_argument("--checkpoint-every", type=positive_float, default=60.0, metavar="SECONDS",
                    help="with -o: save the run to DIR/drainage_checkpoint.npz every SECONDS of wall time "
                    "(default 60) and report progress on stderr")
+    p.add_argument("--progress-every", type=positive_float, default=None, metavar="SECONDS",
+                   help=f"wall seconds between two progress lines on stderr (default {REPORT_EVERY:g} when "
+                   f"stderr is not a terminal, {REPORT_EVERY_TTY:g} when it is)")
     p.add_argument("--resume", action="store_true",
                    help="continue a killed or interrupted run from DIR/drainage_checkpoint.npz (same arguments)")
     p.add_argument("--overwrite", action="store_true",
@@ -105,9 +110,10 @@ def run(args: argparse.Namespace) -> int:
 
     warn_injection_pressure(net, args.axis, args.rate, args.mu_n)
     times = np.linspace(0, args.t_end, args.snapshots + 1)[1:] if args.snapshots else None
+    tty = sys.stderr.isatty()
+    every = args.progress_every or (REPORT_EVERY_TTY if tty else REPORT_EVERY)
     run = dict(rate=args.rate, t_end=args.t_end, times=times, axis=args.axis, scheme=args.scheme,
-               report=_progress(args.t_end, saved=False), report_every=REPORT_EVERY if not sys.stderr.isatty()
-               else REPORT_EVERY_TTY)
+               report=_progress(args.t_end, saved=False), report_every=every)
     if out is None:
         res = simulate_drainage(net, fluids, **run)
         return _report(args, net, res, None, t0)
@@ -215,10 +221,19 @@ def _progress(t_end: float, saved: bool = True):
     """A callback printing one progress line on stderr (after a checkpoint, or periodically)."""
     def report(sim, seconds):
         st = sim._engine
-        print(f"drainage: t = {st.t:.4g} / {t_end:g} s, {st.n_fills} pores full, Sw = {st.sw():.4f}, "
-              f"{st.n_events} events, {seconds:.0f} s{' (checkpoint saved)' if saved else ''}", file=sys.stderr,
-              flush=True)
+        print(f"drainage: t = {st.t:.4g} / {t_end:g} s, Sw = {st.sw():.4f}, P_in = {_last_inlet_pressure(st):.5g} Pa, "
+              f"{st.n_events} events, {st.n_fills} pores full, {seconds:.0f} s wall"
+              f"{' (checkpoint saved)' if saved else ''}", file=sys.stderr, flush=True)
     return report
+
+
+def _last_inlet_pressure(engine) -> float:
+    """The inlet pressure of the engine's latest event that has one (NaN if none of the last 10000)."""
+    rows = engine.rows
+    for k in range(len(rows) - 1, max(len(rows) - 10000, 0) - 1, -1):
+        if np.isfinite(rows[k][3]):  # column 3: inlet_pressure_pa (drainage._ROW_COLUMNS)
+            return float(rows[k][3])
+    return float("nan")
 
 
 def write_pc_s(path, net, fluids, axis, rate: float, res) -> Path:

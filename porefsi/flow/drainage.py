@@ -445,8 +445,9 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
     progress : callable, optional
         Called as ``progress(sim, seconds)`` after each checkpoint (e.g. to print a progress line).
     report : callable, optional
-        Called as ``report(sim, seconds)`` every ``report_every`` seconds of wall time, between two
-        events (with or without checkpoints: a progress line for logs).
+        Called as ``report(sim, seconds)`` once the run starts (after a resumed run's checkpoint is
+        read) and then every ``report_every`` seconds of wall time, between two events (with or
+        without checkpoints: a progress line for logs).
     report_every : float
         Wall seconds between two ``report`` calls (default 5).
     **options
@@ -489,6 +490,8 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
     e = sim._engine
     targets = [*ts.tolist(), t_end]
     last = last_report = _time.perf_counter()
+    if report is not None:  # the run has started (inputs and checkpoint checked)
+        report(sim, before + last_report - t0)
 
     def save():
         nonlocal last
