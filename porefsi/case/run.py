@@ -424,6 +424,8 @@ def _write_summary(out, case, sofar: _Sofar, clock: _RunClock, status, error, fi
         "mass_balance_error": mass,
         "load_balance_error": load,
         "interface_unloaded_pores": run.interface.n_unloaded,
+        "solid_response": run.solid.summary() if hasattr(run.solid, "summary") else {
+            "requested": "nonlinear", "path": "nonlinear"},
         "reextraction": None if case.network.update != "reextract" else {
             "n_computed": run.n_extractions, "n_reused": run.n_extractions_reused,
             "reuse_extractions": run.reuse_extractions,

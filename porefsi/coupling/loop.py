@@ -30,11 +30,11 @@ import numpy as np
 from porefsi.coupling import checkpoint as _ckpt
 from porefsi.coupling.fluid_step import advance_fluid, carry_state, fluid_times, pore_pressure, transfer_loads
 from porefsi.coupling.interface import Interface
+from porefsi.coupling.linear_step import make_stepper
 from porefsi.coupling.network_step import ExtractionCache, NetworkState, make_updater
 from porefsi.coupling.problem import CoupledProblem
 from porefsi.coupling.records import TIMESERIES_COLUMNS, TIMESERIES_DOCS, ExchangeRecord, Iterate, IterationStats
 from porefsi.coupling.relaxation import Relaxation
-from porefsi.coupling.solid_step import make_solid_stepper
 from porefsi.coupling.timing import StageClock
 from porefsi.coupling.update import mean_size_change
 from porefsi.errors import ConvergenceError
@@ -117,8 +117,9 @@ class CoupledRun:
         The drainage at :attr:`t`.
     u, v : ndarray, shape (n_dofs,)
         Free displacement (m) and velocity (m/s) of the solid at :attr:`t`.
-    solid : StaticStepper or TDGStepper
-        The solid stepper (owns its factorisations).
+    solid : StaticStepper, TDGStepper or LinearStepper
+        The solid stepper (owns its factorisations; ``solid.response`` = linear/auto: a
+        :class:`~porefsi.coupling.linear_step.LinearStepper` around one of the others).
     extractions : ExtractionCache
     seconds, cpu_seconds : dict
         Wall time (``time.perf_counter``) and CPU time (``time.process_time``: this process, all
@@ -148,7 +149,8 @@ class CoupledRun:
         self.u = np.zeros(self.model.n_dofs)
         self.v = np.zeros(self.model.n_dofs)
         cc = opts.coupling
-        self.solid = make_solid_stepper(self.model, cc.integrator, cc.tdg_iterations, cc.tdg_load_rule)
+        self.solid = make_stepper(self.model, cc.integrator, cc.tdg_iterations, cc.tdg_load_rule, opts.solid.response,
+                                  opts.solid.response_tol, problem.interface, self.n_steps)
         self.extractions = ExtractionCache(reuse_extractions)
         self.extractions.seed(problem.image.phases, problem.extraction)
         self.seconds = dict.fromkeys((*STEP_STAGES, "stress", "permeability"), 0.0)
@@ -252,7 +254,7 @@ class CoupledRun:
                 loaded = pressures if self.load_map is None else {s: self.load_map(P) for s, P in pressures.items()}
                 loads = transfer_loads(net_k.interface, loaded, F0, t0, t1)
             with clock("solid"):
-                u1, v1 = self.solid.step(self.u, self.v, t0, t1 - t0, loads.forces)
+                u1, v1 = self.solid.step(self.u, self.v, t0, t1 - t0, loads.forces, loaded, net_k.interface)
                 U1 = self.model.expand(u1, t1)
             U_use = relax(U1) if opts.coupling.subiterations > 1 else U1
             if self.on_iteration is not None:

@@ -70,6 +70,15 @@ class SolidOptions:
                             choices=("x", "y", "z"))
     strain_rate: float = option(0.0, "compressive strain rate on the high face (paper section 3.3)", limits=Limits(0.0),
                                 unit="1/s")
+    response: str = option("nonlinear", "solid response in the coupled run: nonlinear = the hyperelastic solve "
+                           "at every step; linear = superposed unit responses of the model linearised at u = 0 (one "
+                           "factorisation, then a matrix-vector product or back-substitution per step), monitored; "
+                           "auto = linear, falling back to nonlinear for good when the estimated error exceeds "
+                           "response_tol or a re-extraction changes the pores (docs/coupling.md)",
+                           choices=("nonlinear", "linear", "auto"))
+    response_tol: float = option(1e-3, "linear/auto: tolerance on the estimated relative displacement error of "
+                                 "the linearisation (one Newton correction / max |u|)",
+                                 limits=Limits(0.0, 1.0, lo_open=True, hi_open=True))
 
     def __post_init__(self):
         validate(self, "solid")

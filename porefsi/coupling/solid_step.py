@@ -63,8 +63,12 @@ class StaticStepper(_Stepper):
         """The solid needs the fluid load at the end of the step only."""
         return (t0 + dt,)
 
-    def step(self, u: np.ndarray, v: np.ndarray, t0: float, dt: float, forces: dict) -> tuple[np.ndarray, np.ndarray]:
-        """``(u1, v1)`` at ``t0 + dt``; ``forces`` maps each of :meth:`load_times` to nodal forces (Nn, 3), N."""
+    def step(self, u: np.ndarray, v: np.ndarray, t0: float, dt: float, forces: dict, pressures=None,
+             interface=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(u1, v1)`` at ``t0 + dt``; ``forces`` maps each of :meth:`load_times` to nodal forces (Nn, 3), N.
+
+        ``pressures`` and ``interface`` (what made ``forces``) serve the linear stepper only.
+        """
         self._t = t0
         t1 = t0 + dt
         u1 = self._solve(self.model.with_nodal_forces(forces[t1]), t1, u, t_prev=t0)
@@ -190,8 +194,12 @@ class TDGStepper(_Stepper):
         """Times within the step at which the TDG samples the load."""
         return self._stepper_for(dt).load_times(t0)
 
-    def step(self, u: np.ndarray, v: np.ndarray, t0: float, dt: float, forces: dict) -> tuple[np.ndarray, np.ndarray]:
-        """``(u1, v1)`` at ``t0 + dt``; ``forces`` maps each of :meth:`load_times` to nodal forces (Nn, 3), N."""
+    def step(self, u: np.ndarray, v: np.ndarray, t0: float, dt: float, forces: dict, pressures=None,
+             interface=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(u1, v1)`` at ``t0 + dt``; ``forces`` maps each of :meth:`load_times` to nodal forces (Nn, 3), N.
+
+        ``pressures`` and ``interface`` (what made ``forces``) serve the linear stepper only.
+        """
         self._t = t0
         st = self._stepper_for(dt)
         loads = tuple(self.model.with_nodal_forces(forces[s]).external_force(s) for s in st.load_times(t0))
@@ -219,7 +227,11 @@ class TDGStepper(_Stepper):
 
 def make_solid_stepper(model: SolidModel, integrator: str = "static", iterations: int = 2,
                        load_rule: str = "right") -> StaticStepper | TDGStepper:
-    """The stepper of ``integrator`` (``"static"`` or ``"tdg"``: :attr:`CouplingOptions.integrator`)."""
+    """The stepper of ``integrator`` (``"static"`` or ``"tdg"``: :attr:`CouplingOptions.integrator`).
+
+    The linear-response stepper around it (``solid.response``) is made by
+    :func:`porefsi.coupling.linear_step.make_stepper`.
+    """
     if integrator == "static":
         return StaticStepper(model)
     return TDGStepper(model, iterations, load_rule)
