@@ -41,6 +41,9 @@ class DrainageOptions:
 
     rate: float = option(1.25e-13, "volumetric injection rate (paper case A)", limits=_POSITIVE, unit="m^3/s")
     t_end: float = option(20.0, "injection time (paper: 20 s)", limits=_POSITIVE, unit="s")
+    scheme: str = option("exact", "exact = a pressure solve after every event (the reference); adaptive = "
+                         "quasi-static fills in certified batches, local pressure updates elsewhere (docs/drainage.md)",
+                         choices=("exact", "adaptive"))
 
     def __post_init__(self):
         validate(self, "drainage")
