@@ -194,3 +194,13 @@ def test_options_validate_the_response_keys():
         _small_case(response_tol=0.0)
     with pytest.raises(InputError):
         LinearStepper(TDGStepper.__new__(TDGStepper), "nonlinear")
+
+
+def test_run_case_records_the_solid_response_in_the_summary(tmp_path):
+    from porefsi.case.run import run_case
+
+    case = _small_case(response="auto").replace(drainage={"t_end": 2.0},
+                                                output={"figures": False, "vtk": False, "snapshot_times": [1.0]})
+    s = run_case(case, tmp_path / "run", progress=False).summary
+    assert s["solid_response"]["requested"] == "auto" and s["solid_response"]["path"].startswith("linear")
+    assert s["solid_response"]["fallback"] is None and s["solid_response"]["linear_steps"] == 2
