@@ -358,7 +358,7 @@ def test_available_memory_respects_the_address_space_limit():
     def cap():
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
 
-    code = "from porefsi.image._memory import available_memory; print(available_memory())"
+    code = "from porefsi._memory import available_memory; print(available_memory())"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, preexec_fn=cap, check=True)
     assert 0 < int(out.stdout) < limit
 
