@@ -31,8 +31,10 @@ def test_direct_stays_direct_when_small_and_room():
 def test_direct_becomes_amg_above_the_size_threshold_or_without_room():
     big = footprint.choose_linear_solver("direct", footprint.DIRECT_MAX_DOFS + 1, 1e15)
     assert big.kind == "amg" and "direct" in big.reason and "GiB" in big.reason
-    tight = footprint.choose_linear_solver("direct", 39_000, 0.1 * GiB)  # the factor needs ~0.4 GiB
+    tight = footprint.choose_linear_solver("direct", 95_000, 2 * GiB)  # the factor needs ~1.7 GiB
     assert tight.kind == "amg" and "available" in tight.reason
+    # a small factor never switches, however little is free (the estimate is no better than that)
+    assert footprint.choose_linear_solver("direct", 39_000, 0.1 * GiB).kind == "direct"
 
 
 def test_lu_fill_model_matches_a_factorisation():
@@ -63,16 +65,19 @@ def test_estimate_refuses_with_the_need_and_the_fix():
     est = resources.estimate_run(load_sample(), 5, "direct", budget=20 * GiB)
     assert est.linear_solver == "direct" and est.n_tets == mesh_size(load_sample(), coarsen=5)[0]
     resources.require_memory(est, budget=20 * GiB)  # fits: no error
-    need = r"needs ~[0-9.]+ MiB .*57,220 tetrahedra.*51.2 MiB is available.*coarsen \(now 5"
+    resources.require_memory(est, budget=0.05 * GiB)  # below the 1 GiB floor: never refused
+    full = resources.estimate_run(load_sample(), 1, "direct", budget=4 * GiB)  # every voxel meshed: 7M tets
+    assert full.linear_solver == "amg" and full.peak_bytes > 4 * GiB
+    need = r"needs ~[0-9.]+ GiB .*7,013,835 tetrahedra.*4 GiB is available.*coarsen \(now 1"
     with pytest.raises(ConfigError, match=need):
-        resources.require_memory(est, budget=0.05 * GiB)
+        resources.require_memory(full, budget=4 * GiB)
 
 
 def test_cli_stops_in_one_line_before_building(tmp_path, monkeypatch, capsys):
     """A run the machine cannot hold: exit 2, one line naming the memory and the setting, no outputs."""
-    monkeypatch.setattr(resources, "memory_budget", lambda: 0.05 * GiB)
+    monkeypatch.setattr(resources, "memory_budget", lambda: 4 * GiB)
     case_file = tmp_path / "case.toml"
-    case_file.write_text(case_to_toml(Case().replace(output={"figures": False, "vtk": False})))
+    case_file.write_text(case_to_toml(Case().replace(solid={"coarsen": 1}, output={"figures": False, "vtk": False})))
     out = tmp_path / "out"
     assert main(["run", str(case_file), "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()

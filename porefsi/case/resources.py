@@ -22,7 +22,14 @@ import dataclasses
 
 from porefsi.errors import ConfigError
 from porefsi.image.voxel_image import VoxelImage
-from porefsi.solid.footprint import amg_bytes, choose_linear_solver, format_bytes, lu_factor_bytes, memory_budget
+from porefsi.solid.footprint import (
+    MEMORY_FLOOR,
+    amg_bytes,
+    choose_linear_solver,
+    format_bytes,
+    lu_factor_bytes,
+    memory_budget,
+)
 from porefsi.solid.mesh import mesh_size
 
 __all__ = ["RunEstimate", "estimate_run", "require_memory"]
@@ -104,6 +111,8 @@ def estimate_run(image: VoxelImage, coarsen: int, linear_solver: str, budget: fl
 def require_memory(est: RunEstimate, budget: float | None = None) -> None:
     """Refuse a run whose estimated peak exceeds ``budget`` (default :func:`memory_budget`).
 
+    A run estimated below :data:`~porefsi.solid.footprint.MEMORY_FLOOR` (1 GiB) is never refused.
+
     Raises
     ------
     ConfigError
@@ -111,7 +120,7 @@ def require_memory(est: RunEstimate, budget: float | None = None) -> None:
         (``[solid] coarsen``, or ``[image] crop``).
     """
     budget = memory_budget() if budget is None else budget
-    if budget is None or est.peak_bytes <= budget:
+    if budget is None or est.peak_bytes <= max(budget, MEMORY_FLOOR):
         return
     b = est.bytes_by_part
     if b["mesh"] + b["solver"] >= b["extraction"]:

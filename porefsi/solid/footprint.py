@@ -18,8 +18,8 @@ import dataclasses
 import os
 import resource
 
-__all__ = ["DIRECT_MAX_DOFS", "lu_factor_bytes", "amg_bytes", "tangent_bytes", "memory_budget", "available_memory",
-           "SolverChoice", "choose_linear_solver", "format_bytes"]
+__all__ = ["DIRECT_MAX_DOFS", "MEMORY_FLOOR", "lu_factor_bytes", "amg_bytes", "tangent_bytes", "memory_budget",
+           "available_memory", "SolverChoice", "choose_linear_solver", "format_bytes"]
 
 #: Fill of the LU, nonzeros of L + U = LU_FILL_COEF * n ** LU_FILL_EXP (n free dofs), fitted to the
 #: crops in the module docstring (within 10 % of each; the exponent still grows with n, so this
@@ -30,9 +30,14 @@ LU_FILL_EXP = 1.71
 LU_BYTES_PER_NNZ = 16.0
 #: Nonzeros of the P1 tangent per free dof (measured 33.5-35.8 on the Berea crops).
 TANGENT_NNZ_PER_DOF = 36.0
-#: AMG-CG bytes per free dof: the padded BSR copy of the matrix, the hierarchy (operator
-#: complexity ~1.3 with six near-null-space vectors), CG's vectors. Measured.
-AMG_BYTES_PER_DOF = 2600.0
+#: AMG-CG bytes per free dof: the free-dof tangent, the padded BSR copy of it, the hierarchy
+#: (operator complexity 2.3-2.4 with six near-null-space vectors), CG's vectors. Measured as the
+#: rise of the run's peak over what mesh and model hold: 2,170, 2,060, 1,960 B/dof at 185k, 509k,
+#: 1.49M dofs (the 200³, 280³ crops and the whole 400³ Berea).
+AMG_BYTES_PER_DOF = 2200.0
+#: Estimates below this change no choice and refuse no run: the estimate's error and the swings of
+#: the machine's available memory are of their size, and a run this small cannot take a machine down.
+MEMORY_FLOOR = float(2**30)
 #: "direct" switches to AMG-CG above this many free dofs: the factorisation then costs more than
 #: the AMG-CG solves of a whole 20-step run (measured: docs/benchmarks.md, "The coupled run at 400³").
 DIRECT_MAX_DOFS = 100_000
@@ -131,7 +136,7 @@ def choose_linear_solver(requested: str, n_dofs: int, budget: float | None = Non
     -------
     SolverChoice
         ``requested`` unchanged, except "direct" above ``direct_max_dofs`` dofs or with a
-        factor larger than half the budget: "amg", with the reason.
+        factor larger than half the budget (and than :data:`MEMORY_FLOOR`): "amg", with the reason.
     """
     if requested != "direct":
         return SolverChoice(requested)
@@ -139,7 +144,7 @@ def choose_linear_solver(requested: str, n_dofs: int, budget: float | None = Non
     need = lu_factor_bytes(n_dofs)
     budget = memory_budget() if budget is None else budget
     too_big = n_dofs > direct_max_dofs
-    no_room = budget is not None and need > 0.5 * budget
+    no_room = budget is not None and need > max(0.5 * budget, MEMORY_FLOOR)
     if not (too_big or no_room):
         return SolverChoice("direct")
     why = (f"above {direct_max_dofs:,} dofs a factorisation costs more time than AMG-CG's solves"
