@@ -13,6 +13,12 @@ runners of ``bench_extract.py``), and the script prints per tool:
   image's in length (``min_radius = 1.5 f + 0.5`` voxels: a ball whose surface distance
   ``sqrt(dt2) - 0.5`` reaches 1.5 native voxels, as ``min_radius = 2`` asks at 1x).
 
+Each rock is also upsampled *smoothly* (``upsample_smooth``: the trilinear signed distance,
+thresholded; porefsi only unless ``--smooth`` names peers): nearest-neighbour upsampling turns
+the staircase of the voxels into real geometry, which has a lower permeability (voxel Stokes
+on a 60^3 corner of the sample: -13 to -22 % at 2x, ``docs/stokes.md``), so only the smooth
+variant is the same rock seen by a finer scan.
+
 Rocks: the built-in 120^3 Berea sample; crops of the 400^3 Berea (``--data``, default
 ``../shared/data`` next to the checkout; skipped when absent), so the upsampled crop (133^3 x 3
 = 399^3) has the 400^3 image's size and its per-voxel cost can be compared at equal size too;
@@ -98,10 +104,33 @@ TOOLS = {"porefsi": run_porefsi, "pnextract": be.run_pnextract, "snow2": be.run_
 
 
 def upsample(pore: np.ndarray, f: int) -> np.ndarray:
-    """Every voxel repeated ``f`` times along each axis (the same geometry at ``1/f`` the voxel)."""
+    """Every voxel repeated ``f`` times along each axis (the same staircase at ``1/f`` the voxel)."""
     for ax in range(3):
         pore = np.repeat(pore, f, axis=ax)
     return np.ascontiguousarray(pore)
+
+
+def upsample_smooth(pore: np.ndarray, f: int) -> np.ndarray:
+    """The image's smooth surface sampled ``f`` times finer (what a finer scan of the rock would see).
+
+    The signed distance (distance to the solid minus distance to the pore, at voxel centres) is
+    interpolated trilinearly at the fine voxel centres and thresholded at 0: the surface is the
+    same continuous level set at every ``f`` (porosity kept to ~0.5 %), without the staircase
+    that :func:`upsample` makes real.
+    """
+    from scipy import ndimage
+
+    p = pore.astype(bool)
+    sd = (ndimage.distance_transform_edt(p) - ndimage.distance_transform_edt(~p)).astype(np.float32)
+    if f == 1:
+        return pore.astype(np.uint8)
+    axes = [(np.arange(n * f) + 0.5) / f - 0.5 for n in pore.shape]
+    out = np.empty(tuple(n * f for n in pore.shape), np.uint8)
+    jj, kk = np.meshgrid(axes[1], axes[2], indexing="ij")
+    for i, x in enumerate(axes[0]):
+        pts = [np.full(jj.size, x), jj.ravel(), kk.ravel()]
+        out[i] = (ndimage.map_coordinates(sd, pts, order=1, mode="nearest") > 0).reshape(jj.shape)
+    return out
 
 
 def rocks(names, data: Path, crop: int):
@@ -116,8 +145,13 @@ def rocks(names, data: Path, crop: int):
         else:
             d = np.load(p)
             a, vs = d["image"], float(d["voxel_size_m"])
-            for o in (0, 200):
-                yield f"Berea {crop}^3 crop at {o}", np.ascontiguousarray(a[o:o + crop, o:o + crop, o:o + crop]), vs
+            for o in (0,):
+                yield f"Berea {crop}^3 at {o}", np.ascontiguousarray(a[o:o + crop, o:o + crop, o:o + crop]), vs
+            # the same sizes at the native resolution: per-voxel cost at equal image size (cache
+            # effects make a 2 M-voxel image cheaper per voxel than a 60 M-voxel one)
+            for m in (3,):
+                n = min(crop * m, a.shape[0])
+                yield f"Berea {n}^3 at 0 (native, {m}x size)", np.ascontiguousarray(a[:n, :n, :n]), vs
     if "blobs" in names:
         yield "blobs 80^3, porosity 0.30", blobs(n=80, porosity=0.3).astype(np.uint8), 5.345e-6
     if "spheres" in names:
@@ -141,14 +175,43 @@ def _row(rock, f, tool, r, native):
     return line
 
 
+def _rock_rows(rock, pore, vs, up, tools, args, tmp: Path, factors) -> list:
+    native: dict = {}
+    out = []
+    for f in sorted(factors):
+        path = tmp / "img.npz"
+        img = up(pore, f)
+        np.savez(path, image=img, voxel_size_m=vs / f, factor=f)
+        n_vox = int(img.size)
+        del img
+        for tool in tools:
+            if tool != "porefsi" and f not in args.peer_factors:
+                continue
+            try:
+                r = TOOLS[tool](path, args)
+            except Exception as exc:  # a missing or failing peer is reported, the rest run
+                print(f"{rock:32s} {f}x {tool:9s} skipped: {exc}")
+                continue
+            r["n_vox"] = n_vox
+            r["us"] = r["cpu"] / n_vox * 1e6
+            native.setdefault(tool, r)
+            print(_row(rock, f, tool, r, native), flush=True)
+            out.append(dict(rock=rock, factor=f, tool=tool, **r))
+    return out
+
+
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--rocks", nargs="+", default=["sample", "berea", "blobs", "spheres"],
                    choices=["sample", "berea", "blobs", "spheres"])
     p.add_argument("--factors", nargs="+", type=int, default=[1, 2, 3])
     p.add_argument("--tools", nargs="+", default=list(TOOLS), choices=list(TOOLS))
+    p.add_argument("--peer-factors", nargs="+", type=int, default=[1, 3],
+                   help="factors the peers run at (porefsi runs every --factors); default 1 3")
     p.add_argument("--data", type=Path, default=DATA, help="folder holding berea_icl_400.npz")
     p.add_argument("--crop", type=int, default=133, help="Berea crop side, voxels (default 133: 133 x 3 = 399)")
+    p.add_argument("--smooth", nargs="*", default=["porefsi"], choices=list(TOOLS),
+                   help="tools also run on the smooth upsampling (upsample_smooth); default porefsi")
     p.add_argument("--peers-python", default=None)
     p.add_argument("--json", default=None, help="also write every result to this file")
     args = p.parse_args(argv)
@@ -161,26 +224,14 @@ def main(argv=None) -> dict:
           f"{'throats':>7s} {'k mD':>8s} {'/1x':>6s}")
     results = []
     with tempfile.TemporaryDirectory() as tmp:
-        for rock, pore, vs in rocks(args.rocks, args.data, args.crop):
-            native: dict = {}
-            for f in sorted(args.factors):
-                path = Path(tmp) / "img.npz"
-                img = upsample(pore, f)
-                np.savez(path, image=img, voxel_size_m=vs / f, factor=f)
-                n_vox = int(img.size)
-                del img
-                for tool in args.tools:
-                    try:
-                        r = TOOLS[tool](path, args)
-                    except Exception as exc:  # a missing or failing peer is reported, the rest run
-                        print(f"{rock:32s} {f}x {tool:9s} skipped: {exc}")
-                        continue
-                    r["n_vox"] = n_vox
-                    r["us"] = r["cpu"] / n_vox * 1e6
-                    if f == 1 or tool not in native:
-                        native.setdefault(tool, r)
-                    print(_row(rock, f, tool, r, native), flush=True)
-                    results.append(dict(rock=rock, factor=f, tool=tool, **r))
+        for rock0, pore, vs in rocks(args.rocks, args.data, args.crop):
+            if "native" in rock0:  # factor 1 only, porefsi (its per-voxel cost at the upsampled size)
+                if "porefsi" in args.tools:
+                    results += _rock_rows(rock0, pore, vs, upsample, ["porefsi"], args, Path(tmp), [1])
+                continue
+            for kind, up, tools in (("", upsample, args.tools), (" smooth", upsample_smooth, args.smooth)):
+                if tools:
+                    results += _rock_rows(rock0 + kind, pore, vs, up, tools, args, Path(tmp), args.factors)
     print(f"load average after: {open('/proc/loadavg').read().split()[:3]}")
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))

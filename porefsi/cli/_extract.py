@@ -135,7 +135,7 @@ def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
 
 def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
     from porefsi.image.ops import percolating_cluster
-    from porefsi.network.extract import extract_network
+    from porefsi.network.extract import _extract
 
     t0 = time.perf_counter()
     image = image_from_args(args, source)
@@ -153,9 +153,13 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
         perc = percolating_cluster(image, axis)
         removed, work = float(perc.removed_fraction), perc.image
         del perc
-    del image  # the extraction's arrays need the memory (about 8 bytes per voxel on a 1000^3 image)
+    del image
+    connected_porosity, voxel_size = work.porosity, work.voxel_size
+    holder = [work]
+    del work  # handed over: the extraction frees the image once its distance map is computed (1 byte/voxel)
     t1 = time.perf_counter()
-    ext = extract_network(work, **_extraction_kwargs(args), conductance=getattr(args, "conductance", None))
+    kw = {**EXTRACT_DEFAULTS, "conductance": getattr(args, "conductance", None), **_extraction_kwargs(args)}
+    ext = _extract(holder, **kw)
     t_ext = time.perf_counter() - t1
     net = ext.network
     return {
@@ -165,11 +169,11 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
         "source_kind": "image",
         "conductance": net.conduit_model,
         "shape": shape,
-        "voxel_size_m": work.voxel_size,
+        "voxel_size_m": voxel_size,
         "porosity": porosity,
         "axis": axis,
         "removed_fraction": removed,
-        "connected_porosity": work.porosity,
+        "connected_porosity": connected_porosity,
         "network_porosity": float(ext.porosity),
         "min_radius_voxels": ext.info.min_radius,
         "extent_radii": ext.info.extent,

@@ -258,10 +258,11 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels, core):
                 w = _isqrt(lim - dab)
                 for c in range(max(l - w, 0), min(l + w, nz - 1) + 1):
                     v = labels[a, b, c]
+                    if v == -1:  # paint (flagged if in k's core)
+                        labels[a, b, c] = -2 - k if dab + (c - l) * (c - l) < cl else k
+                        continue
                     o = _owner(v)
-                    if o < 0:
-                        o = k
-                    elif o < best:
+                    if o < best:
                         r = master[o]
                         if stamp[r] != k:
                             q = np.int64(balls[r])
@@ -275,10 +276,8 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels, core):
                                 best = o
                             else:
                                 stamp[r] = k
-                    if v <= -2 or dab + (c - l) * (c - l) < cl:
-                        labels[a, b, c] = -2 - o
-                    else:
-                        labels[a, b, c] = o
+                    if v >= 0 and dab + (c - l) * (c - l) < cl:  # flag a painted voxel of k's core
+                        labels[a, b, c] = -2 - v
         if best < nb:
             master[k] = master[best]
         else:

@@ -281,18 +281,30 @@ def extract_network(
     >>> ext.network.n_pores, ext.network.n_throats
     (8, 12)
     """
+    return _extract([image], min_radius=min_radius, extent=extent, merge_ratio=merge_ratio, conductance=conductance)
+
+
+def _extract(holder: list, *, min_radius, extent, merge_ratio, conductance) -> Extraction:
+    """:func:`extract_network` of the image in ``holder`` (a one-item list, emptied).
+
+    The image is released once the distance map is computed: a caller that hands over its only
+    reference (the CLI) saves 1 byte per voxel at the peak.
+    """
+    image = holder.pop()
     min_radius, extent, merge_ratio = float(min_radius), float(extent), float(merge_ratio)
     n_pore = _check(image, min_radius, extent, merge_ratio)
     if conductance is not None and conductance not in CONDUCTANCE_MODELS:
         raise InputError(f"unknown conductance model {conductance!r}; use one of {CONDUCTANCE_MODELS}")
     _check_memory(image.shape, n_pore)
+    shape, vs, origin = image.shape, image.voxel_size, image.origin.copy()
     laps = _Laps()
     dt2 = _distance_map(image.phases)
+    del image
     laps("edt")
     centre_idx, labels, counts = _pore_centres(dt2, min_radius, extent, merge_ratio, laps)
     counts["flooded"] = _flood_regions(dt2, labels, centre_idx, n_pore)
     laps("flood")
-    top = _pores_and_throats(image.shape, labels, dt2, centre_idx, merge_ratio, extent)
+    top = _pores_and_throats(shape, labels, dt2, centre_idx, merge_ratio, extent)
     laps("throats")
     if top.conns.shape[0] == 0:
         raise NetworkError(
@@ -303,7 +315,7 @@ def extract_network(
     geo = _conduits(dt2, labels, top, conductance)
     laps("sections")
     del dt2
-    net = _network(image, top, geo, conductance)
+    net = _network(shape, vs, origin, top, geo, conductance)
     labels.setflags(write=False)
     laps("assemble")
     info = ExtractionInfo(
@@ -312,7 +324,6 @@ def extract_network(
         n_labelled_voxels=int(top.count.sum()), n_flooded_voxels=counts["flooded"], min_radius=min_radius,
         extent=extent, merge_ratio=merge_ratio,
     )
-    vs = image.voxel_size
     sections = {
         "area": geo.sec["area"] * vs**2,
         "face_area": geo.sec["n_faces"] * vs**2,
@@ -430,11 +441,10 @@ def _conduits(dt2, labels, top: _Topology, conductance) -> _Conduits:
     return _Conduits(r_pore, r_throat, lt, lp, sec)
 
 
-def _network(image: VoxelImage, top: _Topology, geo: _Conduits, conductance) -> Network:
+def _network(shape, vs: float, origin, top: _Topology, geo: _Conduits, conductance) -> Network:
     """The :class:`Network` in SI units."""
-    vs = image.voxel_size
     return Network(
-        pore_coords=image.origin + (top.centre + 0.5) * vs,
+        pore_coords=origin + (top.centre + 0.5) * vs,
         pore_radius=geo.r_pore * vs,
         pore_volume=top.count * vs**3,
         throat_conns=top.conns,
@@ -443,8 +453,8 @@ def _network(image: VoxelImage, top: _Topology, geo: _Conduits, conductance) -> 
         throat_pore_length=geo.lp * vs,
         pore_faces=top.faces,
         voxel_size=vs,
-        shape=image.shape,
-        origin=image.origin,
+        shape=shape,
+        origin=origin,
         throat_shape_factor=geo.sec["throat_G"],
         pore_shape_factor=geo.sec["pore_G"],
         throat_duct_fraction=geo.sec["fraction"],
