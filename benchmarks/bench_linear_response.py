@@ -10,11 +10,12 @@ Three parts, each printing one table (and all of them as JSON with ``--json FILE
    volumes, the inlet pressure and Sw, and the CPU seconds of the solid stage.
 2. **flow_rates**: the paper's cases A-D with ``cases/flow_rates`` settings (coarsen 6, hull, static,
    the case's rate-adapted window) run one after the other in this process, nonlinear vs ``auto``.
-3. **limits**: the default case with the Young's modulus lowered by 10²..10⁶ (strain up to ~0.1),
+3. **tdg**: the default case with the paper's TDG integrator, nonlinear vs ``auto`` (linearised TDG).
+4. **limits**: the default case with the Young's modulus lowered by 10²..10⁶ (strain up to ~0.1),
    ``linear`` (no fallback) against nonlinear: where the linear result is off by more than 1 %,
    with the monitor's estimate and the largest Green-Lagrange strain; failing runs are listed.
 
-Run: ``python benchmarks/bench_linear_response.py [--quick] [--part images|flow_rates|limits] [--json FILE]``.
+Run: ``python benchmarks/bench_linear_response.py [--quick] [--part images|flow_rates|tdg|limits] [--json FILE]``.
 """
 
 import argparse
@@ -194,6 +195,21 @@ def part_flow_rates(quick: bool) -> dict:
     return out
 
 
+def part_tdg(quick: bool) -> dict:
+    case = Case().replace(solid={"coarsen": 10 if quick else 5}, coupling={"integrator": "tdg"},
+                          output={"figures": False, "vtk": False})
+    prob = problem_from_case(case)
+    ref = run_once(case, "nonlinear", problem=prob)
+    lin = run_once(case, "auto", problem=prob)
+    d = compare(ref, lin)
+    print(f"TDG ({ref['n_dofs']} dofs, {ref['steps']} steps): solid CPU nonlinear {ref['solid_cpu_s']:.2f} s, auto "
+          f"{lin['solid_cpu_s']:.2f} s ({ref['solid_cpu_s'] / lin['solid_cpu_s']:.1f}x, {lin['linear']['path']}); "
+          f"max rel diff u field {d['displacement']:.2e}, max|u| {d['max_u']:.2e}; estimate "
+          f"{lin['linear']['max_estimated_error']:.2e}", flush=True)
+    return {"solid_cpu_nonlinear": ref["solid_cpu_s"], "solid_cpu_auto": lin["solid_cpu_s"], "diff": d,
+            "linear": lin["linear"]}
+
+
 def part_limits(quick: bool) -> list[dict]:
     coarsen = 10 if quick else 5
     base = Case().replace(solid={"coarsen": coarsen}, output={"figures": False, "vtk": False})
@@ -230,10 +246,10 @@ def part_limits(quick: bool) -> list[dict]:
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="coarse meshes, fewer runs")
-    p.add_argument("--part", choices=("images", "flow_rates", "limits"), action="append", default=None)
+    p.add_argument("--part", choices=("images", "flow_rates", "tdg", "limits"), action="append", default=None)
     p.add_argument("--json", default=None, metavar="FILE", help="write every number as JSON")
     args = p.parse_args(argv)
-    parts = args.part or ["images", "flow_rates", "limits"]
+    parts = args.part or ["images", "flow_rates", "tdg", "limits"]
     import tempfile
 
     print(f"load {open('/proc/loadavg').read().split()[:3]}", flush=True)
@@ -243,6 +259,8 @@ def main(argv=None) -> dict:
             out["images"] = part_images(args.quick, Path(tmp))
         if "flow_rates" in parts:
             out["flow_rates"] = part_flow_rates(args.quick)
+        if "tdg" in parts:
+            out["tdg"] = part_tdg(args.quick)
         if "limits" in parts:
             out["limits"] = part_limits(args.quick)
     print(f"load {open('/proc/loadavg').read().split()[:3]}", flush=True)

@@ -25,11 +25,12 @@ run in one process reuses it. Without stored responses a step is one back-substi
 linearisation: the nonlinear defect :math:`d = f_{int}(u) - f_{lin}(u)` at the linear solution,
 turned into a displacement error :math:`\delta = K_0^{-1} d` (static; for TDG the step's
 :math:`M^{*-1}\alpha^2\Delta t^2 d`), :math:`e = \|\delta\|_\infty / \|u\|_\infty`. With
-``response = "auto"`` the run falls back to the nonlinear stepper for good when ``e`` exceeds
-``solid.response_tol`` or when a re-extraction rebuilt the interface (the responses are those of
-the reference pores), redoing that step nonlinearly; each fallback and check is recorded
-(:meth:`LinearStepper.summary`, ``summary.json`` key ``solid_response``). ``"linear"`` monitors
-and records but never falls back (studies of where the linearisation stops holding).
+``response = "auto"`` the run falls back to the nonlinear stepper for good when ``e`` times
+:data:`CHECK_GROWTH` (what it may grow by before the next check) exceeds ``solid.response_tol``,
+or when a re-extraction rebuilt the interface (the responses are those of the reference pores),
+redoing that step nonlinearly; each fallback and check is recorded (:meth:`LinearStepper.summary`,
+``summary.json`` key ``solid_response``). ``"linear"`` monitors and records but never falls back
+(studies of where the linearisation stops holding).
 """
 
 from __future__ import annotations
@@ -304,9 +305,10 @@ class LinearStepper:
             v1 = (u1 - u) / dt
         self.n_linear += 1
         est = self._monitor(u1, t1, dt)
-        if est is not None and est > self.tol and self.mode == "auto":
-            return self._fall_back(u, v, t0, dt, forces, f"estimated linearisation error {est:.3g} > {self.tol:g}",
-                                   est)
+        # the error may grow by CHECK_GROWTH before the next check: fall back before it can pass tol
+        if est is not None and est * CHECK_GROWTH > self.tol and self.mode == "auto":
+            why = f"estimated linearisation error {est:.3g} (x {CHECK_GROWTH:g}) > {self.tol:g}"
+            return self._fall_back(u, v, t0, dt, forces, why, est)
         return u1, v1
 
     def _static(self, t1: float, F1: np.ndarray, P1, interface) -> np.ndarray:
