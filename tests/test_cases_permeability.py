@@ -74,3 +74,7 @@ def test_permeability_smoke(perm, tmp_path):
     assert (tmp_path / "figures" / "permeability_speed_accuracy.png").stat().st_size > 10_000
     assert (tmp_path / "permeability_table.md").read_text().count("\n|") == 1 + len(pts)
 
+
+
+def test_committed_chart_exists():
+    assert (CASE / "figures" / "permeability_speed_accuracy.png").is_file()
