@@ -114,3 +114,21 @@ def test_amg_path_agrees_with_direct_on_a_mid_size_crop(monkeypatch):
         scale = np.abs(a.displacement).max()
         assert scale > 0
         assert np.abs(a.displacement - b.displacement).max() <= 1e-6 * scale
+
+
+def test_padded_matrix_is_the_free_block_with_the_mean_diagonal_elsewhere():
+    """The AMG hierarchy's full-size matrix, built in CSR order, against a dense construction."""
+    from porefsi.solid.linsolve import AMGSolverFactory
+
+    rng = np.random.default_rng(1)
+    n_nodes = 50
+    free = np.sort(rng.choice(3 * n_nodes, 120, replace=False))
+    M = sp.random(120, 120, density=0.2, random_state=2)
+    A = (M + M.T + 5 * sp.eye(120)).tocsr()
+    padded = AMGSolverFactory(rng.random((n_nodes, 3)), free)._padded(A)
+    assert padded.blocksize == (3, 3)
+    ref = np.zeros((3 * n_nodes, 3 * n_nodes))
+    ref[np.ix_(free, free)] = A.toarray()
+    cons = np.setdiff1d(np.arange(3 * n_nodes), free)
+    ref[cons, cons] = A.diagonal().mean()
+    assert np.array_equal(padded.toarray(), ref)
