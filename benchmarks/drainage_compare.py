@@ -1,4 +1,4 @@
-"""Run a drainage with pressure samples and compare two runs (used by ``bench_drainage.py --scheme``).
+"""Run a drainage with pressure samples and compare two runs (used by ``bench_drainage_scheme.py``).
 
 A run goes to breakthrough and on to ``1.25 x`` its breakthrough time (``tail``), reading the
 state (inlet pressure from a solve, wetting saturation) at sample times ``k * dt`` (``dt`` =

@@ -73,7 +73,9 @@ class AdaptiveEngine(Engine):
     graph, rate, inlet_pressure, solver, max_active_set_iter
         As for :class:`~porefsi.flow._drainage_engine.Engine`.
     skip_solves
-        Ignored: the batch certificate replaces the exact scheme's per-jump skip.
+        As for the exact engine: a jump that no batch certified still skips its solve when the
+        exact scheme's one-path bound allows (measured: that bound, with the current wetting
+        region, certifies more jumps than the batch bound, which must hold for the batch's end).
     batch : int
         Most fills predicted (and certified) per batch; cost only, never the outcome.
     hops : int
@@ -86,9 +88,7 @@ class AdaptiveEngine(Engine):
                  solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None,
                  batch: int = 64, hops: int = DEFAULT_HOPS, local_solves: int = DEFAULT_LOCAL_SOLVES,
                  local_menisci: int = DEFAULT_LOCAL_MENISCI):
-        if solver == "auto":
-            solver = "direct" if graph.n + 1 <= 400 else "hybrid"
-        super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=False,
+        super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=skip_solves,
                          max_active_set_iter=max_active_set_iter)
         self.max_menisci = int(local_menisci)
         self.batch = int(batch)
