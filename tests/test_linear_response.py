@@ -135,8 +135,11 @@ def test_auto_stays_linear_at_small_strain_and_falls_back_on_a_rebuilt_interface
         u, v = st.step(u, v, k, 1.0, _forces(itf, P, t1), {t1: P}, itf)
         assert _rel(u, _nonlinear(model, itf, P, t1)) < 1e-6
     assert st.fallen is None and st.path == "linear (unit responses)" and st.n_checks >= 1
-    other = dataclasses.replace(itf)  # a re-extraction's new interface (new object)
-    st.step(u, v, 3.0, 1.0, _forces(other, P2, 4.0), {4.0: P2}, other)
+    restored = dataclasses.replace(itf)  # the same operator in a new object (a resumed run's): still linear
+    u, v = st.step(u, v, 3.0, 1.0, _forces(restored, P2 * 4, 4.0), {4.0: P2 * 4}, restored)
+    assert st.fallen is None and _rel(u, _nonlinear(model, itf, P2 * 4, 4.0)) < 1e-6
+    other = dataclasses.replace(itf, operator=itf.operator[:, [1, 0]].tocsr())  # a re-extraction's new pores
+    st.step(u, v, 4.0, 1.0, _forces(other, P2, 5.0), {5.0: P2}, other)
     assert st.fallen is not None and "re-extraction" in st.fallen["reason"]
 
 
@@ -204,3 +207,19 @@ def test_run_case_records_the_solid_response_in_the_summary(tmp_path):
     s = run_case(case, tmp_path / "run", progress=False).summary
     assert s["solid_response"]["requested"] == "auto" and s["solid_response"]["path"].startswith("linear")
     assert s["solid_response"]["fallback"] is None and s["solid_response"]["linear_steps"] == 2
+
+
+def test_checkpoint_resume_of_a_linear_run_agrees_to_round_off():
+    prob = problem_from_case(_small_case(response="auto"))
+    whole = CoupledRun(prob)
+    ref = [r.displacement for r in whole.steps()]
+    first = CoupledRun(prob)
+    first.advance()
+    arrays, meta = first.checkpoint()
+    assert meta["linear_steps"] == 1 and meta["linear_fallen"] is False
+    clear_response_cache()  # a new process: nothing cached
+    again = CoupledRun.restore(prob, arrays, meta)
+    rest = [r.displacement for r in again.steps()]
+    assert len(rest) == 2 and again.solid.n_linear == 3
+    for x, y in zip(ref[1:], rest, strict=True):
+        assert _rel(y, x) < 1e-12

@@ -281,6 +281,7 @@ class LinearStepper:
         self.max_estimate = 0.0
         self._since_check, self._u_checked = CHECK_EVERY, 0.0
         self._use_responses: bool | None = None
+        self._seen, self._key = None, None  # an interface object found equal to the reference, its digest
 
     # ---- the stepper protocol -------------------------------------------------------------
     def load_times(self, t0: float, dt: float) -> tuple[float, ...]:
@@ -296,7 +297,7 @@ class LinearStepper:
         if self.fallen is not None:
             return self.inner.step(u, v, t0, dt, forces)
         t1 = t0 + dt
-        if interface is not None and self.interface is not None and interface is not self.interface:
+        if interface is not None and self.interface is not None and not self._same_interface(interface):
             return self._fall_back(u, v, t0, dt, forces, "re-extraction rebuilt the interface (new pores)", None)
         if self.dynamic:
             u1, v1 = self._tdg.step(u, v, t0, dt, forces)
@@ -310,6 +311,17 @@ class LinearStepper:
             why = f"estimated linearisation error {est:.3g} (x {CHECK_GROWTH:g}) > {self.tol:g}"
             return self._fall_back(u, v, t0, dt, forces, why, est)
         return u1, v1
+
+    def _same_interface(self, interface) -> bool:
+        """Whether ``interface`` has the reference operator (the same object, or one restored from a checkpoint)."""
+        if interface is self.interface or interface is self._seen:
+            return True
+        if self._key is None:
+            self._key = _operator_key(self.interface)
+        same = _operator_key(interface) == self._key
+        if same:
+            self._seen = interface
+        return same
 
     def _static(self, t1: float, F1: np.ndarray, P1, interface) -> np.ndarray:
         if P1 is not None and interface is not None and self.interface is not None and self._responses_pay():
