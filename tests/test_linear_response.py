@@ -13,7 +13,13 @@ import pytest
 from porefsi.case.config import Case
 from porefsi.case.problem import problem_from_case
 from porefsi.coupling import boundary_facet_normals, facet_pores_from_labels, traction_interface
-from porefsi.coupling.linear_step import LinearStepper, clear_response_cache, linear_response, make_stepper
+from porefsi.coupling.linear_step import (
+    LinearStepper,
+    clear_response_cache,
+    linear_response,
+    make_stepper,
+    max_green_lagrange,
+)
 from porefsi.coupling.loop import CoupledRun
 from porefsi.coupling.solid_step import StaticStepper, TDGStepper
 from porefsi.errors import ConfigError, InputError
@@ -187,7 +193,7 @@ def test_coupled_run_linear_matches_nonlinear(integrator):
         assert _rel(y, x) < 1e-6
     s = lin.solid.summary()
     assert s["fallback"] is None and s["path"].startswith("linear") and s["checks"] >= 1
-    assert 0 < s["max_estimated_error"] < 1e-5
+    assert 0 < s["max_estimated_error"] < 1e-5 and 0 < s["max_strain_at_checks"] < 1e-5
 
 
 def test_options_validate_the_response_keys():
@@ -223,3 +229,13 @@ def test_checkpoint_resume_of_a_linear_run_agrees_to_round_off():
     assert len(rest) == 2 and again.solid.n_linear == 3
     for x, y in zip(ref[1:], rest, strict=True):
         assert _rel(y, x) < 1e-12
+
+
+def test_max_green_lagrange_of_a_homogeneous_deformation():
+    """E = (F^T F - I) / 2 for u = G X: the largest |principal value|, in closed form."""
+    mesh = mesh_solid(VoxelImage(np.zeros((3, 3, 3), np.uint8), H), coarsen=1, support_axis=None).mesh
+    G = np.array([[0.1, 0.02, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, -0.05]])
+    F = np.eye(3) + G
+    E = 0.5 * (F.T @ F - np.eye(3))
+    got = max_green_lagrange(SolidModel(mesh, make_material("svk")), mesh.points @ G.T)
+    assert got == pytest.approx(np.abs(np.linalg.eigvalsh(E)).max(), rel=1e-12)

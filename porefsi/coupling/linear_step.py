@@ -47,7 +47,8 @@ from porefsi.errors import InputError
 from porefsi.integrators.tdg import ALPHA
 from porefsi.solid.model import SMALL_DOFS, SolidModel
 
-__all__ = ["RESPONSES", "LinearResponse", "LinearStepper", "linear_response", "clear_response_cache", "make_stepper"]
+__all__ = ["RESPONSES", "LinearResponse", "LinearStepper", "linear_response", "clear_response_cache", "make_stepper",
+           "max_green_lagrange"]
 
 #: ``solid.response`` choices.
 RESPONSES = ("nonlinear", "linear", "auto")
@@ -102,6 +103,17 @@ def linear_response(model: SolidModel) -> LinearResponse:
     while len(_CACHE) > CACHE_SIZE:
         _CACHE.popitem(last=False)
     return resp
+
+
+def max_green_lagrange(model: SolidModel, U: np.ndarray) -> float:
+    """Largest |principal Green-Lagrange strain| of any element for vertex displacements ``U`` (Nv, 3).
+
+    From the P1 (vertex) gradients: exact for P1, the vertex part of a P2 field.
+    """
+    dN = model.vertex_gradients()  # (Ne, 4, 3), 1/m
+    H = np.einsum("eai,eaj->eij", np.asarray(U, float)[model.mesh.tets], dN)
+    E = 0.5 * (H + H.transpose(0, 2, 1) + np.einsum("eki,ekj->eij", H, H))
+    return float(np.abs(np.linalg.eigvalsh(E)).max(initial=0.0))
 
 
 class LinearResponse:
@@ -278,7 +290,7 @@ class LinearStepper:
         self.fallen: dict | None = None  # the fallback event, once it happened
         self.events: list[dict] = []
         self.n_linear = self.n_checks = 0
-        self.max_estimate = 0.0
+        self.max_estimate = self.max_strain = 0.0
         self._since_check, self._u_checked = CHECK_EVERY, 0.0
         self._use_responses: bool | None = None
         self._seen, self._key = None, None  # an interface object found equal to the reference, its digest
@@ -354,7 +366,9 @@ class LinearStepper:
         self._since_check, self._u_checked = 0, umax
         self.n_checks += 1
         self.max_estimate = max(self.max_estimate, est)
-        self.events.append({"kind": "check", "t": t1, "estimate": est, "max_u": umax})
+        strain = max_green_lagrange(self.model, self.model.expand(u1, t1))
+        self.max_strain = max(self.max_strain, strain)
+        self.events.append({"kind": "check", "t": t1, "estimate": est, "max_u": umax, "max_strain": strain})
         return est
 
     def estimate(self, u: np.ndarray, t: float, dt: float | None = None) -> float:
@@ -391,7 +405,8 @@ class LinearStepper:
     def summary(self) -> dict:
         """What ran: mode, path, checks, largest estimate, fallback (``summary.json`` ``solid_response``)."""
         return {"requested": self.mode, "path": self.path, "tolerance": self.tol, "linear_steps": self.n_linear,
-                "checks": self.n_checks, "max_estimated_error": self.max_estimate, "fallback": self.fallen,
+                "checks": self.n_checks, "max_estimated_error": self.max_estimate,
+                "max_strain_at_checks": self.max_strain, "fallback": self.fallen,
                 "events": [e for e in self.events if e["kind"] != "check"][-20:]}
 
     def state(self) -> tuple[dict, dict]:
