@@ -239,3 +239,19 @@ def test_max_green_lagrange_of_a_homogeneous_deformation():
     E = 0.5 * (F.T @ F - np.eye(3))
     got = max_green_lagrange(SolidModel(mesh, make_material("svk")), mesh.points @ G.T)
     assert got == pytest.approx(np.abs(np.linalg.eigvalsh(E)).max(), rel=1e-12)
+
+
+def test_unit_responses_only_within_the_memory_budget(two_pores, monkeypatch):
+    import porefsi.coupling.linear_step as ls
+
+    mesh, itf = two_pores
+    model = _model(mesh, 20e9)
+    u0 = np.zeros(model.n_dofs)
+    monkeypatch.setattr(ls, "RESPONSE_BUDGET_BYTES", 8 * model.n_dofs * 2 - 1)  # one column short
+    st = make_stepper(model, response="auto", interface=itf, n_steps=1000)
+    u1, _ = st.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
+    assert st.path == "linear (back-substitution)"
+    monkeypatch.setattr(ls, "RESPONSE_BUDGET_BYTES", 8 * model.n_dofs * 2)
+    st = make_stepper(model, response="auto", interface=itf, n_steps=1000)
+    u2, _ = st.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
+    assert st.path == "linear (unit responses)" and _rel(u2, u1) < 1e-12

@@ -80,7 +80,7 @@ def _digest(*parts) -> str:
 def _model_key(model: SolidModel) -> str:
     c = model.constraints
     return _digest(model.mesh.points, model.mesh.tets, model.free, c.dofs, c.value, c.rate, repr(model.material),
-                   model.order, model.linear_solver, model.backend)
+                   model.order, model.linear_solver, model.backend, repr(model.tractions))
 
 
 def clear_response_cache() -> None:
@@ -177,10 +177,9 @@ class LinearResponse:
             T = sp.vstack([T, sp.csr_matrix((n_full - T.shape[0], T.shape[1]))]).tocsr()
         return T[self.model.free].tocsc()
 
-    def response_bytes(self, interface) -> int:
-        """Memory of the unit responses of ``interface``'s loaded pores, bytes."""
-        Tf = self.free_operator(interface)
-        return 8 * self.model.n_dofs * int(np.count_nonzero(np.diff(Tf.indptr)))
+    def loaded_columns(self, interface) -> int:
+        """Number of pores of ``interface`` whose load reaches a free dof (the columns of ``U``)."""
+        return int(np.count_nonzero(np.diff(self.free_operator(interface).indptr)))
 
     def has_responses(self, interface) -> bool:
         """Whether the unit responses of ``interface`` are stored."""
@@ -204,7 +203,7 @@ class LinearResponse:
                 U = np.asarray(self.solve(np.asfortranarray(B)))
             else:
                 U = np.column_stack([self.solve(B[:, j]) for j in range(B.shape[1])]) if len(cols) else B
-            a = self.solve(m.external_force(0.0) - self.f0)
+            a = self.solve(m.with_nodal_forces(None).external_force(0.0) - self.f0)  # the pore loads come in U
             b = self.solve(-self.k_rate)
             self._responses = {key: (cols, U, a, b)}  # one interface at a time
         return self._responses[key]
@@ -294,6 +293,7 @@ class LinearStepper:
         self._since_check, self._u_checked = CHECK_EVERY, 0.0
         self._use_responses: bool | None = None
         self._seen, self._key = None, None  # an interface object found equal to the reference, its digest
+        self._n_cols: int | None = None  # loaded pores of the reference interface
 
     # ---- the stepper protocol -------------------------------------------------------------
     def load_times(self, t0: float, dt: float) -> tuple[float, ...]:
@@ -347,12 +347,12 @@ class LinearStepper:
             r = self.resp
             if r.has_responses(self.interface):
                 self._use_responses = True
-            elif r.affine_load and r.response_bytes(self.interface) <= RESPONSE_BUDGET_BYTES:
-                n_cols = r.response_bytes(self.interface) // (8 * self.model.n_dofs)
-                ahead = max(0, self.n_steps - self.n_linear)
-                self._use_responses = r.n_solves + ahead >= BLOCK_SOLVE_RATIO * n_cols
             else:
-                self._use_responses = False
+                if self._n_cols is None:
+                    self._n_cols = r.loaded_columns(self.interface)
+                fits = 8 * self.model.n_dofs * self._n_cols <= RESPONSE_BUDGET_BYTES
+                ahead = max(0, self.n_steps - self.n_linear)
+                self._use_responses = r.affine_load and fits and r.n_solves + ahead >= BLOCK_SOLVE_RATIO * self._n_cols
         return self._use_responses
 
     # ---- validity monitor ---------------------------------------------------------------
