@@ -255,3 +255,17 @@ def test_unit_responses_only_within_the_memory_budget(two_pores, monkeypatch):
     st = make_stepper(model, response="auto", interface=itf, n_steps=1000)
     u2, _ = st.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
     assert st.path == "linear (unit responses)" and _rel(u2, u1) < 1e-12
+
+
+def test_auto_falls_back_before_the_error_can_pass_the_tolerance(two_pores):
+    """An estimate just below the tolerance may grow 25 % before the next check: auto falls back already."""
+    mesh, itf = two_pores
+    model = _model(mesh, 2e7)
+    u0 = np.zeros(model.n_dofs)
+    lin = make_stepper(model, response="linear", interface=itf)
+    lin.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
+    est = lin.max_estimate
+    for tol, falls in ((1.1 * est, True), (1.3 * est, False)):
+        auto = make_stepper(model, response="auto", response_tol=tol, interface=itf)
+        auto.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
+        assert (auto.fallen is not None) == falls, tol / est
