@@ -32,18 +32,10 @@ import numpy as np  # noqa: E402
 
 from porefsi.case import Case, problem_from_case  # noqa: E402
 from porefsi.coupling import CoupledRun  # noqa: E402
-from porefsi.coupling.linear_step import clear_response_cache  # noqa: E402
+from porefsi.coupling.linear_step import clear_response_cache, max_green_lagrange  # noqa: E402
 
 BEREA_400 = Path("/work/shared/data/berea_icl_400.npz")
 FLOW_RATES = {"A": 1.25e-13, "B": 2.5e-13, "C": 5e-11, "D": 5e-10}
-
-
-def green_lagrange_max(model, U: np.ndarray) -> float:
-    """Largest |principal Green-Lagrange strain| over the elements for vertex displacements U (Nn, 3)."""
-    dN = model.vertex_gradients()  # (Ne, 4, 3)
-    H = np.einsum("eai,eaj->eij", U[model.mesh.tets], dN)
-    E = 0.5 * (H + H.transpose(0, 2, 1) + np.einsum("eki,ekj->eij", H, H))
-    return float(np.abs(np.linalg.eigvalsh(E)).max())
 
 
 def run_once(case: Case, response: str, clear: bool = True, problem=None) -> dict:
@@ -66,7 +58,7 @@ def run_once(case: Case, response: str, clear: bool = True, problem=None) -> dic
             hist["pv"].append(np.array(rec.network.pore_volume))
             hist["pin"].append(rec.row["inlet_pressure_Pa"])
             hist["sw"].append(rec.row["sw"])
-            hist["strain"].append(green_lagrange_max(prob.model, rec.displacement))
+            hist["strain"].append(max_green_lagrange(prob.model, rec.displacement))
         out["error"] = None
     except Exception as exc:  # noqa: BLE001 - a failing run is a result here
         out["error"] = f"{type(exc).__name__}: {str(exc)[:160]}"

@@ -13,7 +13,13 @@ import pytest
 from porefsi.case.config import Case
 from porefsi.case.problem import problem_from_case
 from porefsi.coupling import boundary_facet_normals, facet_pores_from_labels, traction_interface
-from porefsi.coupling.linear_step import LinearStepper, clear_response_cache, linear_response, make_stepper
+from porefsi.coupling.linear_step import (
+    LinearStepper,
+    clear_response_cache,
+    linear_response,
+    make_stepper,
+    max_green_lagrange,
+)
 from porefsi.coupling.loop import CoupledRun
 from porefsi.coupling.solid_step import StaticStepper, TDGStepper
 from porefsi.errors import ConfigError, InputError
@@ -135,8 +141,11 @@ def test_auto_stays_linear_at_small_strain_and_falls_back_on_a_rebuilt_interface
         u, v = st.step(u, v, k, 1.0, _forces(itf, P, t1), {t1: P}, itf)
         assert _rel(u, _nonlinear(model, itf, P, t1)) < 1e-6
     assert st.fallen is None and st.path == "linear (unit responses)" and st.n_checks >= 1
-    other = dataclasses.replace(itf)  # a re-extraction's new interface (new object)
-    st.step(u, v, 3.0, 1.0, _forces(other, P2, 4.0), {4.0: P2}, other)
+    restored = dataclasses.replace(itf)  # the same operator in a new object (a resumed run's): still linear
+    u, v = st.step(u, v, 3.0, 1.0, _forces(restored, P2 * 4, 4.0), {4.0: P2 * 4}, restored)
+    assert st.fallen is None and _rel(u, _nonlinear(model, itf, P2 * 4, 4.0)) < 1e-6
+    other = dataclasses.replace(itf, operator=itf.operator[:, [1, 0]].tocsr())  # a re-extraction's new pores
+    st.step(u, v, 4.0, 1.0, _forces(other, P2, 5.0), {5.0: P2}, other)
     assert st.fallen is not None and "re-extraction" in st.fallen["reason"]
 
 
@@ -184,7 +193,7 @@ def test_coupled_run_linear_matches_nonlinear(integrator):
         assert _rel(y, x) < 1e-6
     s = lin.solid.summary()
     assert s["fallback"] is None and s["path"].startswith("linear") and s["checks"] >= 1
-    assert 0 < s["max_estimated_error"] < 1e-5
+    assert 0 < s["max_estimated_error"] < 1e-5 and 0 < s["max_strain_at_checks"] < 1e-5
 
 
 def test_options_validate_the_response_keys():
@@ -204,3 +213,59 @@ def test_run_case_records_the_solid_response_in_the_summary(tmp_path):
     s = run_case(case, tmp_path / "run", progress=False).summary
     assert s["solid_response"]["requested"] == "auto" and s["solid_response"]["path"].startswith("linear")
     assert s["solid_response"]["fallback"] is None and s["solid_response"]["linear_steps"] == 2
+
+
+def test_checkpoint_resume_of_a_linear_run_agrees_to_round_off():
+    prob = problem_from_case(_small_case(response="auto"))
+    whole = CoupledRun(prob)
+    ref = [r.displacement for r in whole.steps()]
+    first = CoupledRun(prob)
+    first.advance()
+    arrays, meta = first.checkpoint()
+    assert meta["linear_steps"] == 1 and meta["linear_fallen"] is False
+    clear_response_cache()  # a new process: nothing cached
+    again = CoupledRun.restore(prob, arrays, meta)
+    rest = [r.displacement for r in again.steps()]
+    assert len(rest) == 2 and again.solid.n_linear == 3
+    for x, y in zip(ref[1:], rest, strict=True):
+        assert _rel(y, x) < 1e-12
+
+
+def test_max_green_lagrange_of_a_homogeneous_deformation():
+    """E = (F^T F - I) / 2 for u = G X: the largest |principal value|, in closed form."""
+    mesh = mesh_solid(VoxelImage(np.zeros((3, 3, 3), np.uint8), H), coarsen=1, support_axis=None).mesh
+    G = np.array([[0.1, 0.02, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, -0.05]])
+    F = np.eye(3) + G
+    E = 0.5 * (F.T @ F - np.eye(3))
+    got = max_green_lagrange(SolidModel(mesh, make_material("svk")), mesh.points @ G.T)
+    assert got == pytest.approx(np.abs(np.linalg.eigvalsh(E)).max(), rel=1e-12)
+
+
+def test_unit_responses_only_within_the_memory_budget(two_pores, monkeypatch):
+    import porefsi.coupling.linear_step as ls
+
+    mesh, itf = two_pores
+    model = _model(mesh, 20e9)
+    u0 = np.zeros(model.n_dofs)
+    monkeypatch.setattr(ls, "RESPONSE_BUDGET_BYTES", 8 * model.n_dofs * 2 - 1)  # one column short
+    st = make_stepper(model, response="auto", interface=itf, n_steps=1000)
+    u1, _ = st.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
+    assert st.path == "linear (back-substitution)"
+    monkeypatch.setattr(ls, "RESPONSE_BUDGET_BYTES", 8 * model.n_dofs * 2)
+    st = make_stepper(model, response="auto", interface=itf, n_steps=1000)
+    u2, _ = st.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
+    assert st.path == "linear (unit responses)" and _rel(u2, u1) < 1e-12
+
+
+def test_auto_falls_back_before_the_error_can_pass_the_tolerance(two_pores):
+    """An estimate just below the tolerance may grow 25 % before the next check: auto falls back already."""
+    mesh, itf = two_pores
+    model = _model(mesh, 2e7)
+    u0 = np.zeros(model.n_dofs)
+    lin = make_stepper(model, response="linear", interface=itf)
+    lin.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
+    est = lin.max_estimate
+    for tol, falls in ((1.1 * est, True), (1.3 * est, False)):
+        auto = make_stepper(model, response="auto", response_tol=tol, interface=itf)
+        auto.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
+        assert (auto.fallen is not None) == falls, tol / est

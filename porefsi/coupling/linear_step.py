@@ -47,7 +47,8 @@ from porefsi.errors import InputError
 from porefsi.integrators.tdg import ALPHA
 from porefsi.solid.model import SMALL_DOFS, SolidModel
 
-__all__ = ["RESPONSES", "LinearResponse", "LinearStepper", "linear_response", "clear_response_cache", "make_stepper"]
+__all__ = ["RESPONSES", "LinearResponse", "LinearStepper", "linear_response", "clear_response_cache", "make_stepper",
+           "max_green_lagrange"]
 
 #: ``solid.response`` choices.
 RESPONSES = ("nonlinear", "linear", "auto")
@@ -79,7 +80,7 @@ def _digest(*parts) -> str:
 def _model_key(model: SolidModel) -> str:
     c = model.constraints
     return _digest(model.mesh.points, model.mesh.tets, model.free, c.dofs, c.value, c.rate, repr(model.material),
-                   model.order, model.linear_solver, model.backend)
+                   model.order, model.linear_solver, model.backend, repr(model.tractions))
 
 
 def clear_response_cache() -> None:
@@ -102,6 +103,17 @@ def linear_response(model: SolidModel) -> LinearResponse:
     while len(_CACHE) > CACHE_SIZE:
         _CACHE.popitem(last=False)
     return resp
+
+
+def max_green_lagrange(model: SolidModel, U: np.ndarray) -> float:
+    """Largest |principal Green-Lagrange strain| of any element for vertex displacements ``U`` (Nv, 3).
+
+    From the P1 (vertex) gradients: exact for P1, the vertex part of a P2 field.
+    """
+    dN = model.vertex_gradients()  # (Ne, 4, 3), 1/m
+    H = np.einsum("eai,eaj->eij", np.asarray(U, float)[model.mesh.tets], dN)
+    E = 0.5 * (H + H.transpose(0, 2, 1) + np.einsum("eki,ekj->eij", H, H))
+    return float(np.abs(np.linalg.eigvalsh(E)).max(initial=0.0))
 
 
 class LinearResponse:
@@ -165,10 +177,9 @@ class LinearResponse:
             T = sp.vstack([T, sp.csr_matrix((n_full - T.shape[0], T.shape[1]))]).tocsr()
         return T[self.model.free].tocsc()
 
-    def response_bytes(self, interface) -> int:
-        """Memory of the unit responses of ``interface``'s loaded pores, bytes."""
-        Tf = self.free_operator(interface)
-        return 8 * self.model.n_dofs * int(np.count_nonzero(np.diff(Tf.indptr)))
+    def loaded_columns(self, interface) -> int:
+        """Number of pores of ``interface`` whose load reaches a free dof (the columns of ``U``)."""
+        return int(np.count_nonzero(np.diff(self.free_operator(interface).indptr)))
 
     def has_responses(self, interface) -> bool:
         """Whether the unit responses of ``interface`` are stored."""
@@ -192,7 +203,7 @@ class LinearResponse:
                 U = np.asarray(self.solve(np.asfortranarray(B)))
             else:
                 U = np.column_stack([self.solve(B[:, j]) for j in range(B.shape[1])]) if len(cols) else B
-            a = self.solve(m.external_force(0.0) - self.f0)
+            a = self.solve(m.with_nodal_forces(None).external_force(0.0) - self.f0)  # the pore loads come in U
             b = self.solve(-self.k_rate)
             self._responses = {key: (cols, U, a, b)}  # one interface at a time
         return self._responses[key]
@@ -278,9 +289,11 @@ class LinearStepper:
         self.fallen: dict | None = None  # the fallback event, once it happened
         self.events: list[dict] = []
         self.n_linear = self.n_checks = 0
-        self.max_estimate = 0.0
+        self.max_estimate = self.max_strain = 0.0
         self._since_check, self._u_checked = CHECK_EVERY, 0.0
         self._use_responses: bool | None = None
+        self._seen, self._key = None, None  # an interface object found equal to the reference, its digest
+        self._n_cols: int | None = None  # loaded pores of the reference interface
 
     # ---- the stepper protocol -------------------------------------------------------------
     def load_times(self, t0: float, dt: float) -> tuple[float, ...]:
@@ -296,7 +309,7 @@ class LinearStepper:
         if self.fallen is not None:
             return self.inner.step(u, v, t0, dt, forces)
         t1 = t0 + dt
-        if interface is not None and self.interface is not None and interface is not self.interface:
+        if interface is not None and self.interface is not None and not self._same_interface(interface):
             return self._fall_back(u, v, t0, dt, forces, "re-extraction rebuilt the interface (new pores)", None)
         if self.dynamic:
             u1, v1 = self._tdg.step(u, v, t0, dt, forces)
@@ -311,6 +324,17 @@ class LinearStepper:
             return self._fall_back(u, v, t0, dt, forces, why, est)
         return u1, v1
 
+    def _same_interface(self, interface) -> bool:
+        """Whether ``interface`` has the reference operator (the same object, or one restored from a checkpoint)."""
+        if interface is self.interface or interface is self._seen:
+            return True
+        if self._key is None:
+            self._key = _operator_key(self.interface)
+        same = _operator_key(interface) == self._key
+        if same:
+            self._seen = interface
+        return same
+
     def _static(self, t1: float, F1: np.ndarray, P1, interface) -> np.ndarray:
         if P1 is not None and interface is not None and self.interface is not None and self._responses_pay():
             cols, U, a, b = self.resp.responses(self.interface)
@@ -323,12 +347,12 @@ class LinearStepper:
             r = self.resp
             if r.has_responses(self.interface):
                 self._use_responses = True
-            elif r.affine_load and r.response_bytes(self.interface) <= RESPONSE_BUDGET_BYTES:
-                n_cols = r.response_bytes(self.interface) // (8 * self.model.n_dofs)
-                ahead = max(0, self.n_steps - self.n_linear)
-                self._use_responses = r.n_solves + ahead >= BLOCK_SOLVE_RATIO * n_cols
             else:
-                self._use_responses = False
+                if self._n_cols is None:
+                    self._n_cols = r.loaded_columns(self.interface)
+                fits = 8 * self.model.n_dofs * self._n_cols <= RESPONSE_BUDGET_BYTES
+                ahead = max(0, self.n_steps - self.n_linear)
+                self._use_responses = r.affine_load and fits and r.n_solves + ahead >= BLOCK_SOLVE_RATIO * self._n_cols
         return self._use_responses
 
     # ---- validity monitor ---------------------------------------------------------------
@@ -342,7 +366,9 @@ class LinearStepper:
         self._since_check, self._u_checked = 0, umax
         self.n_checks += 1
         self.max_estimate = max(self.max_estimate, est)
-        self.events.append({"kind": "check", "t": t1, "estimate": est, "max_u": umax})
+        strain = max_green_lagrange(self.model, self.model.expand(u1, t1))
+        self.max_strain = max(self.max_strain, strain)
+        self.events.append({"kind": "check", "t": t1, "estimate": est, "max_u": umax, "max_strain": strain})
         return est
 
     def estimate(self, u: np.ndarray, t: float, dt: float | None = None) -> float:
@@ -379,7 +405,8 @@ class LinearStepper:
     def summary(self) -> dict:
         """What ran: mode, path, checks, largest estimate, fallback (``summary.json`` ``solid_response``)."""
         return {"requested": self.mode, "path": self.path, "tolerance": self.tol, "linear_steps": self.n_linear,
-                "checks": self.n_checks, "max_estimated_error": self.max_estimate, "fallback": self.fallen,
+                "checks": self.n_checks, "max_estimated_error": self.max_estimate,
+                "max_strain_at_checks": self.max_strain, "fallback": self.fallen,
                 "events": [e for e in self.events if e["kind"] != "check"][-20:]}
 
     def state(self) -> tuple[dict, dict]:
