@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from porefsi.errors import InputError, NetworkError
-from porefsi.image._memory import available_memory, format_bytes
+from porefsi.image import available_memory, format_bytes
 from porefsi.image.voxel_image import VoxelImage
 from porefsi.network import _kernels as kern
 from porefsi.network._mb_conduits import (
