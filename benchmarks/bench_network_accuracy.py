@@ -8,10 +8,12 @@ is compared), and any ``--reference FILE.json`` (``{"image name": {"x": k_mD, "y
 e.g. from a voxel Stokes solve of the same image, written by ``--save-images`` below).
 
 Images: the 400³ Berea and its 200³ octant crops and the 120³ sample when
-``--data DIR`` holds them (not shipped); synthetic rocks always: an overlapping-sphere grain
-pack and Gaussian blob media at two porosities (seeded, so the voxel reference can be computed
-on the same arrays: ``--save-images DIR`` writes each as ``NAME.npz`` with ``image`` and
-``voxel_size_m`` keys).
+``--data DIR`` holds them (not shipped); synthetic rocks always: overlapping-sphere grain
+packs (two grain sizes and porosities), Gaussian blob media at three porosities and a mirror
+tile of one (seeded, so the voxel reference can be computed on the same arrays:
+``--save-images DIR`` writes each as ``NAME.npz`` with ``image`` and ``voxel_size_m`` keys;
+``--voxel`` solves the voxel Stokes reference of every image that has none and stores it in
+the ``--reference`` file).
 
 ``--pc-reference FILE.json`` (``{"pc": [...Pa], "snw": [...]}``, e.g. PoreSpy's image-based
 morphological drainage of the 400³ Berea along x, sigma = 0.03 N/m, theta = 0) adds the
@@ -85,6 +87,26 @@ def images(data: str | None):
     yield "spheres_p35", sphere_pack(), BEREA_VOXEL, None
     yield "blobs_p30", blobs(porosity=0.30), BEREA_VOXEL, None
     yield "blobs_p20", blobs(porosity=0.20), BEREA_VOXEL, None
+    # added for issue 12's second pass: another grain size and porosity, another blob porosity and
+    # correlation length, and a mirror tile (the image followed by its mirror along axis 0: along
+    # x the same conduits twice in series, so k_x should not move; a finite-size check)
+    yield "spheres_p30_r6", sphere_pack(porosity=0.30, r_mean=6.0, seed=3), BEREA_VOXEL, None
+    yield "blobs_p25", blobs(porosity=0.25, sigma=3.0, seed=4), BEREA_VOXEL, None
+    b = blobs(n=100, porosity=0.25, sigma=3.0, seed=5)
+    yield "blobs_p25_mirror", np.concatenate([b, b[::-1]], axis=0), BEREA_VOXEL, None
+
+
+def voxel_k(pore, vs) -> dict:
+    """Voxel Stokes permeability (mD) per axis (porefsi.stokes defaults), for a missing reference."""
+    from porefsi.stokes import voxel_permeability
+
+    out = {}
+    for ax in "xyz":
+        t = time.process_time()
+        r = voxel_permeability(VoxelImage(pore.astype(np.uint8), voxel_size=vs), ax)
+        out[ax] = r.k_mD
+        print(f"    voxel {ax}: {r.k_mD:8.1f} mD, {r.iterations} its, {time.process_time() - t:.0f} s CPU", flush=True)
+    return out
 
 
 def network_k(pore, vs, model) -> tuple[dict, dict]:
@@ -140,6 +162,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--json")
     ap.add_argument("--save-images")
     ap.add_argument("--pc-reference")
+    ap.add_argument("--voxel", action="store_true",
+                    help="solve the voxel Stokes reference of images without one (added to --reference)")
     a = ap.parse_args(argv)
     refs = json.loads(Path(a.reference).read_text()) if a.reference else {}
     only = set(a.only.split(",")) if a.only else None
@@ -151,6 +175,10 @@ def main(argv=None) -> dict:
         if a.save_images:
             np.savez_compressed(Path(a.save_images) / f"{name}.npz", image=pore.astype(np.uint8), voxel_size_m=vs)
         ref = refs.get(name, ref)
+        if ref is None and a.voxel:
+            ref = refs[name] = voxel_k(pore, vs)
+            if a.reference:
+                Path(a.reference).write_text(json.dumps(refs, indent=1))
         row = {"porosity": float(pore.mean()), "shape": list(pore.shape), "reference_mD": ref}
         for model in ("paper", "shape_factor"):
             ks, info = network_k(pore, vs, model)

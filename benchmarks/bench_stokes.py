@@ -36,12 +36,16 @@ Usage::
 
     python benchmarks/bench_stokes.py --quick            # built-in sample along x only
     python benchmarks/bench_stokes.py --cases sample crops coarse --out results.jsonl
+    python benchmarks/bench_stokes.py --cases full --progress --out full.jsonl   # ~1 h CPU per axis
+    python benchmarks/bench_stokes.py --summarise full.jsonl \
+        --case-reference cases/speed_accuracy/reference/berea400_voxel.json
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import resource
 import subprocess
@@ -84,8 +88,10 @@ def child(spec: dict) -> dict:
     img = _load(spec)
     t0, c0 = time.perf_counter(), time.process_time()
     r = voxel_permeability(img, spec["axis"], **spec.get("kw", {}))
+    head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=REPO, capture_output=True, text=True)
     return {
-        **spec, "k_mD": r.k_mD, "iterations": r.iterations, "flux_spread": r.flux_spread,
+        **spec, "k_mD": r.k_mD, "iterations": r.iterations, "flux_spread": r.flux_spread, "converged": r.converged,
+        "commit": head.stdout.strip() or None, "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
         "residual": r.residual, "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
         "peak_rss_GiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
         "estimate_GiB": r.memory_bytes / 2**30, "n_unknowns": r.n_unknowns, "shape": list(img.shape),
@@ -94,13 +100,42 @@ def child(spec: dict) -> dict:
     }
 
 
-def run(spec: dict) -> dict:
+def run(spec: dict, progress: bool = False) -> dict:
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
-    out = subprocess.run([sys.executable, __file__, "--child", json.dumps(spec)], capture_output=True, text=True,
+    args = [sys.executable, __file__, "--child", json.dumps(spec)] + (["--progress"] if progress else [])
+    out = subprocess.run(args, stdout=subprocess.PIPE, stderr=None if progress else subprocess.PIPE, text=True,
                          env=env)
     if out.returncode != 0:
-        return {**spec, "error": out.stderr.strip().splitlines()[-1] if out.stderr.strip() else "failed"}
+        err = (out.stderr or "").strip()
+        return {**spec, "error": err.splitlines()[-1] if err else f"failed (exit {out.returncode})"}
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def case_reference(records, path: Path) -> dict:
+    """Write the full-resolution solves (case ``full``) as ``cases/speed_accuracy/reference/berea400_voxel.json``.
+
+    Per axis: k, iterations, convergence, times, peak memory and load; CPU and wall summed over the
+    axes solved. An axis not solved is left out (the case then leaves the point out).
+    """
+    rows = {r["axis"]: r for r in records if r.get("case") == "full" and "k_mD" in r}
+    if not rows:
+        raise SystemExit("no solved 'full' records to write")
+    some = next(iter(rows.values()))
+    ref = {"source": "benchmarks/bench_stokes.py --cases full", "image": some["image"],
+           "commit": some.get("commit"), "date_utc": some.get("date_utc"),
+           "voxel_size_m": some["voxel_size_m"], "shape": some["shape"],
+           "k_mD": {a: r["k_mD"] for a, r in rows.items()}, "iterations": {a: r["iterations"] for a, r in rows.items()},
+           "residual": {a: r["residual"] for a, r in rows.items()},
+           "flux_spread": {a: r["flux_spread"] for a, r in rows.items()},
+           "converged": all(r.get("converged", True) for r in rows.values()),
+           "cpu_s": sum(r["cpu_s"] for r in rows.values()), "wall_s": sum(r["wall_s"] for r in rows.values()),
+           "cpu_s_per_axis": {a: r["cpu_s"] for a, r in rows.items()},
+           "wall_s_per_axis": {a: r["wall_s"] for a, r in rows.items()},
+           "peak_rss_GiB": {a: r["peak_rss_GiB"] for a, r in rows.items()},
+           "load": {a: r["load"] for a, r in rows.items()}}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(ref, indent=1) + "\n")
+    return ref
 
 
 def octants(n: int):
@@ -189,12 +224,22 @@ def main(argv=None) -> int:
     ap.add_argument("--image", default=None, help="the 400^3 Berea npz (default: ../shared/data/berea_icl_400.npz)")
     ap.add_argument("--out", default=None, help="append one JSON line per solve to this file")
     ap.add_argument("--summarise", default=None, metavar="JSONL", help="only summarise an earlier --out file")
+    ap.add_argument("--progress", action="store_true",
+                    help="print each solve's set-up time and every 25th MINRES residual (stderr)")
+    ap.add_argument("--case-reference", default=None, metavar="JSON",
+                    help="with --summarise: write its 'full' records as the speed_accuracy case's cached "
+                         "full-resolution point (cases/speed_accuracy/reference/berea400_voxel.json)")
     args = ap.parse_args(argv)
     if args.child:
+        if args.progress:
+            logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(asctime)s %(message)s")
         print(json.dumps(child(json.loads(args.child))))
         return 0
     if args.summarise:
-        summarise([json.loads(line) for line in open(args.summarise)])
+        records = [json.loads(line) for line in open(args.summarise)]
+        summarise(records)
+        if args.case_reference:
+            print(json.dumps(case_reference(records, Path(args.case_reference)), indent=1))
         return 0
     image = Path(args.image) if args.image else next((p for p in CANDIDATES if p.exists()), None)
     cases = ["quick"] if args.quick else args.cases
@@ -202,7 +247,7 @@ def main(argv=None) -> int:
         print("400^3 Berea not found (--image): skipping the cases that need it")
     records = []
     for spec in specs(cases, image):
-        rec = run(spec)
+        rec = run(spec, args.progress)
         records.append(rec)
         if args.out:
             with open(args.out, "a") as fh:

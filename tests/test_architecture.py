@@ -3,7 +3,7 @@ package's private modules, the public API names what it says (issue 14).
 
 The layers, bottom to top (a module may import its own package and anything below it)::
 
-    errors, units, _version, _schema, _lazy, _numba      helpers of every layer
+    errors, units, _version, _schema, _lazy, _numba, _memory   helpers of every layer
     image                                                segmented images
     network                                              pore networks from images
     io, plot                                             files (results, checkpoints, VTK) and figures
@@ -31,7 +31,7 @@ import porefsi
 
 ROOT = Path(porefsi.__file__).resolve().parent
 LAYERS = (
-    {"errors", "units", "_version", "_schema", "_lazy", "_numba", "porefsi"},
+    {"errors", "units", "_version", "_schema", "_lazy", "_numba", "_memory", "porefsi"},
     {"image"},
     {"network"},
     {"io", "plot"},

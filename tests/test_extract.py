@@ -12,7 +12,7 @@ from scipy.sparse import csgraph
 from porefsi.errors import InputError, NetworkError, PorefsiError
 from porefsi.image.synthetic import cylinder_bundle, sphere_lattice
 from porefsi.image.voxel_image import VoxelImage
-from porefsi.network.extract import MIN_SEGMENT, extract_network
+from porefsi.network.extract import MIN_SEGMENT, extract_network, memory_needed
 from porefsi.network.network import Network
 
 
@@ -325,3 +325,86 @@ def test_pore_count_against_porespy_snow2():
     n_snow = len(snow.network["pore.coords"])
     n_mb = extract_network(img).network.n_pores
     assert 0.5 <= n_mb / n_snow <= 0.9
+
+
+def test_extraction_refuses_an_image_larger_than_the_memory_before_allocating(monkeypatch):
+    import porefsi.network.extract as ex
+
+    img = sphere_lattice(n=(2, 1, 1)).image
+    need = ex.memory_needed(img.shape, int(img.phases.sum()))
+    assert need == img.phases.size * 6 + int(img.phases.sum()) * 4
+    monkeypatch.setattr(ex, "available_memory", lambda: need - 1)
+
+    def no_edt(*a, **k):  # the check comes before the first allocation
+        raise AssertionError("distance map computed")
+
+    monkeypatch.setattr(ex, "_distance_map", no_edt)
+    with pytest.raises(InputError, match=r"needs about .* more memory .* crop"):
+        ex.extract_network(img)
+    monkeypatch.setattr(ex, "available_memory", lambda: need)
+    monkeypatch.undo()
+    assert ex.extract_network(img).network.n_pores == 2
+
+
+def test_available_memory_respects_the_address_space_limit():
+    # `ulimit -v` caps what a process can allocate whatever the machine has free; the check
+    # must see it, or a shared machine's limit turns the one-line error into a MemoryError
+    import resource
+    import subprocess
+    import sys
+
+    limit = 3 * 2**30
+
+    def cap():
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+    code = "from porefsi._memory import available_memory; print(available_memory())"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, preexec_fn=cap, check=True)
+    assert 0 < int(out.stdout) < limit
+
+
+def test_memory_estimate_matches_the_traced_peak():
+    # memory_needed is what the refusal above compares with the free memory: it must be the real
+    # peak (numpy allocations are traced), within a few %, on a rock-like image. The peak is the
+    # flood: distance map + labels + one shared index list; a second list (an un-shared queue)
+    # would add 4 bytes per pore voxel (+14 % here) and fail this.
+    import tracemalloc
+
+    rng = np.random.default_rng(3)
+    f = ndimage.gaussian_filter(rng.standard_normal((100, 100, 100)), 3.0, mode="wrap")
+    img = VoxelImage((f <= np.quantile(f, 0.25)).astype(np.uint8), 1e-6)
+    extract_network(img)  # compile outside the trace
+    tracemalloc.start()
+    try:
+        extract_network(img)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    need = memory_needed(img.shape, int(img.phases.sum()))
+    assert 0.9 <= peak / need <= 1.05, (peak, need)
+
+
+def test_handed_over_image_is_released_after_the_distance_map(monkeypatch):
+    # the CLI hands its only reference over (_extract empties the list): the image's voxels
+    # must be gone by the maximal-ball stage, or a 1000^3 run holds 1 GB more at its peak
+    import gc
+    import weakref
+
+    import porefsi.network.extract as ex
+
+    img = sphere_lattice(n=(2, 2, 1)).image
+    want = ex.extract_network(img).network
+    holder = [VoxelImage(img.phases.copy(), img.voxel_size)]
+    ref = weakref.ref(holder[0])
+    seen = []
+    real = ex._pore_centres
+
+    def spy(*a, **k):
+        gc.collect()
+        seen.append(ref() is None)
+        return real(*a, **k)
+
+    monkeypatch.setattr(ex, "_pore_centres", spy)
+    got = ex._extract(holder, min_radius=2.0, extent=2.0, merge_ratio=0.9, conductance=None).network
+    assert holder == [] and seen == [True]
+    assert got.n_pores == want.n_pores and np.allclose(got.throat_radius, want.throat_radius)

@@ -261,3 +261,24 @@ def test_a_preconditioner_that_hides_residuals_is_caught(monkeypatch):
     monkeypatch.setattr(_pressure.PressureMultigrid, "matvec", lambda self, b: 1e-8 * original(self, b))
     with pytest.raises(ConvergenceError, match="true relative residual"):
         voxel_permeability(VoxelImage(_random_rock(), 1e-6), "x")
+
+
+def test_progress_log_reports_the_k_of_each_iterate(caplog):
+    """With INFO logging, every 25th MINRES iteration logs its residual and the k of its iterate
+    (the convergence state of an hour-long solve), converging on the k returned."""
+    import logging
+    import re
+
+    img = VoxelImage(_random_rock(shape=(20, 18, 19), seed=3), 1e-6)
+    with caplog.at_level(logging.INFO, logger="porefsi.stokes._solve"):
+        r = voxel_permeability(img, "y", rtol=1e-10)
+    pat = re.compile(r"iteration (\d+): relative preconditioned residual (\S+), k of the iterate (\S+) mD")
+    rows = [(int(m[1]), float(m[2]), float(m[3])) for m in map(pat.search, caplog.messages) if m]
+    assert r.iterations >= 50 and [it for it, _, _ in rows] == list(range(25, r.iterations + 1, 25))
+    assert rows[-1][1] < rows[0][1]
+    assert rows[-1][2] == pytest.approx(r.k_mD, rel=1e-4)
+    assert abs(rows[0][2] / r.k_mD - 1) < 0.2  # a k, not a raw flux or a pressure
+    with caplog.at_level(logging.WARNING, logger="porefsi.stokes._solve"):
+        caplog.clear()
+        voxel_permeability(img, "y")
+    assert not caplog.messages

@@ -12,6 +12,7 @@ import dataclasses
 from pathlib import Path
 
 from porefsi.case.config import Case
+from porefsi.case.resources import estimate_run, require_memory
 from porefsi.coupling import CoupledOptions, CoupledProblem, HullOptions, StageClock, TractionOptions, build_problem
 from porefsi.errors import ConfigError, InputError
 from porefsi.flow.fluids import Fluids
@@ -73,10 +74,18 @@ def problem_from_case(case: Case) -> CoupledProblem:
     """Read the case's image and build its coupled problem (network, mesh, solid model, interface).
 
     The set-up times (:attr:`CoupledProblem.seconds`) start with the image's (``image``).
+
+    Raises
+    ------
+    ConfigError
+        The run's estimated memory (:func:`porefsi.case.resources.estimate_run`) exceeds what the
+        machine has; the message says how much it needs and which setting lowers it.
     """
     clock = StageClock()
     with clock("image"):
         img = load_case_image(case)
+    # refuse before anything large is built: a run the machine cannot hold stops here, in one line
+    require_memory(estimate_run(img, case.solid.coarsen, case.solid.linear_solver))
     problem = build_problem(img, coupled_options(case))
     return dataclasses.replace(problem, seconds=clock.wall | problem.seconds,
                                cpu_seconds=clock.cpu | problem.cpu_seconds)

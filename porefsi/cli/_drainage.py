@@ -9,7 +9,11 @@ outlet node pressure, the outlet being at 0 by construction), ``DIR/invasion.csv
 trapping on the same network and fluids). With ``-o DIR`` the run is saved to
 ``DIR/drainage_checkpoint.npz`` every ``--checkpoint-every`` seconds (a progress line on stderr
 each time); ``--resume`` continues a killed run from it, to the same result bit for bit. A
-fresh run first removes what an earlier run wrote in DIR (those file names only).
+fresh run first removes what an earlier run wrote in DIR (those file names only). A progress line
+(simulated time, saturation, inlet pressure, events, full pores, wall seconds) goes to stderr
+every ``--progress-every`` seconds: 5 s by default when stderr is not a terminal (logs of batch
+jobs), 10 s when it is; the first once the inputs are checked and the run starts, with or without ``-o``.
+``--scheme adaptive`` runs the adaptive scheme (docs/drainage.md).
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ CHECKPOINT = "drainage_checkpoint.npz"
 def register(subparsers) -> None:
     """Add the ``drainage`` subcommand."""
     from porefsi.cli._extract import add_network_args
-    from porefsi.flow.drainage import PAPER_RATE, PAPER_T_END
+    from porefsi.flow.drainage import DEFAULT_SCHEME, PAPER_RATE, PAPER_T_END, SCHEMES
 
     p = subparsers.add_parser(
         "drainage", help="dynamic two-phase drainage (non-wetting injection at constant rate)",
@@ -51,6 +55,10 @@ def register(subparsers) -> None:
     p.add_argument("--sigma", type=positive_float, default=0.03, help="interfacial tension, N/m (0.03)")
     p.add_argument("--theta", type=float, default=0.0, help="contact angle through the wetting fluid, "
                    "degrees, in [0, 90) (default 0)")
+    p.add_argument("--scheme", choices=SCHEMES, default=DEFAULT_SCHEME,
+                   help="exact: a pressure solve after every event (the reference); adaptive: quasi-static fills "
+                   "in certified batches without solves, local pressure updates elsewhere (docs/drainage.md; "
+                   f"default {DEFAULT_SCHEME})")
     p.add_argument("--snapshots", type=int, default=5, metavar="K",
                    help="number of evenly spaced per-pore snapshots written to DIR (default 5)")
     p.add_argument("-o", "--output", default=None, metavar="DIR",
@@ -58,6 +66,9 @@ def register(subparsers) -> None:
     p.add_argument("--checkpoint-every", type=positive_float, default=60.0, metavar="SECONDS",
                    help="with -o: save the run to DIR/drainage_checkpoint.npz every SECONDS of wall time "
                    "(default 60) and report progress on stderr")
+    p.add_argument("--progress-every", type=positive_float, default=None, metavar="SECONDS",
+                   help=f"wall seconds between two progress lines on stderr (default {REPORT_EVERY:g} when "
+                   f"stderr is not a terminal, {REPORT_EVERY_TTY:g} when it is)")
     p.add_argument("--resume", action="store_true",
                    help="continue a killed or interrupted run from DIR/drainage_checkpoint.npz (same arguments)")
     p.add_argument("--overwrite", action="store_true",
@@ -99,19 +110,23 @@ def run(args: argparse.Namespace) -> int:
 
     warn_injection_pressure(net, args.axis, args.rate, args.mu_n)
     times = np.linspace(0, args.t_end, args.snapshots + 1)[1:] if args.snapshots else None
+    tty = sys.stderr.isatty()
+    every = args.progress_every or (REPORT_EVERY_TTY if tty else REPORT_EVERY)
+    run = dict(rate=args.rate, t_end=args.t_end, times=times, axis=args.axis, scheme=args.scheme,
+               report=_progress(args.t_end, saved=False), report_every=every)
     if out is None:
-        res = simulate_drainage(net, fluids, rate=args.rate, t_end=args.t_end, times=times, axis=args.axis)
+        res = simulate_drainage(net, fluids, **run)
         return _report(args, net, res, None, t0)
     if not args.resume:  # fails here (no spanning path, bad options) before the folder is touched
-        DrainageSimulator(net, fluids, rate=args.rate, axis=args.axis)
+        DrainageSimulator(net, fluids, rate=args.rate, axis=args.axis, scheme=args.scheme)
     with rundir.lock(out), rundir.output_errors(out):
         if not args.resume:
             _refuse_existing(out, args.overwrite)  # again: a run may have finished there meanwhile
             _clear_outputs(out)
         # a resumed run reads and checks its checkpoint before it changes anything
-        res = simulate_drainage(net, fluids, rate=args.rate, t_end=args.t_end, times=times, axis=args.axis,
-                                checkpoint=out / CHECKPOINT, checkpoint_every=args.checkpoint_every,
-                                resume=args.resume, progress=_progress(args.t_end))
+        res = simulate_drainage(net, fluids, **run, checkpoint=out / CHECKPOINT,
+                                checkpoint_every=args.checkpoint_every, resume=args.resume,
+                                progress=_progress(args.t_end))
         _write_outputs(out, net, fluids, args, res)
     return _report(args, net, res, out, t0)
 
@@ -157,10 +172,11 @@ def _report(args, net, res, out, t0) -> int:
     warn_pressure_reached(float(np.nanmax(p)) if np.isfinite(p).any() else float("nan"))
     c = res.counters
     summary = {
-        "n_pores": net.n_pores, "n_dropped_pores": res.n_dropped,
+        "n_pores": net.n_pores, "n_dropped_pores": res.n_dropped, "scheme": args.scheme,
         "breakthrough_time_s": res.breakthrough_time, "breakthrough_sw": res.breakthrough_sw,
         "final_sw": res.final.sw, "final_inlet_pressure_pa": res.final.inlet_pressure,
         "n_events": c["n_events"], "n_solves": c["n_solves"], "n_jumps": c["n_jumps"],
+        **{k: c[k] for k in ("n_certified_fills", "n_local_solves", "n_global_solves") if k in c},
         "mass_balance_error": res.mass_balance_error, "seconds": time.perf_counter() - t0,
         "output": str(out) if out else None,
     }
@@ -196,13 +212,28 @@ def _clear_outputs(out: Path) -> None:
             f.unlink()
 
 
-def _progress(t_end: float):
-    """A checkpoint callback printing one progress line on stderr."""
+#: Wall seconds between two progress lines on stderr when it is not a terminal (logs), and when it is.
+REPORT_EVERY = 5.0
+REPORT_EVERY_TTY = 10.0
+
+
+def _progress(t_end: float, saved: bool = True):
+    """A callback printing one progress line on stderr (after a checkpoint, or periodically)."""
     def report(sim, seconds):
         st = sim._engine
-        print(f"drainage: t = {st.t:.4g} / {t_end:g} s, {st.n_fills} pores full, Sw = {st.sw():.4f}, "
-              f"{st.n_events} events, {seconds:.0f} s (checkpoint saved)", file=sys.stderr, flush=True)
+        print(f"drainage: t = {st.t:.4g} / {t_end:g} s, Sw = {st.sw():.4f}, P_in = {_last_inlet_pressure(st):.5g} Pa, "
+              f"{st.n_events} events, {st.n_fills} pores full, {seconds:.0f} s wall"
+              f"{' (checkpoint saved)' if saved else ''}", file=sys.stderr, flush=True)
     return report
+
+
+def _last_inlet_pressure(engine) -> float:
+    """The inlet pressure of the engine's latest event that has one (NaN if none of the last 10000)."""
+    rows = engine.rows
+    for k in range(len(rows) - 1, max(len(rows) - 10000, 0) - 1, -1):
+        if np.isfinite(rows[k][3]):  # column 3: inlet_pressure_pa (drainage._ROW_COLUMNS)
+            return float(rows[k][3])
+    return float("nan")
 
 
 def write_pc_s(path, net, fluids, axis, rate: float, res) -> Path:

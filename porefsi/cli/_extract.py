@@ -135,7 +135,7 @@ def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
 
 def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
     from porefsi.image.ops import percolating_cluster
-    from porefsi.network.extract import extract_network
+    from porefsi.network.extract import _extract
 
     t0 = time.perf_counter()
     image = image_from_args(args, source)
@@ -147,27 +147,33 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
             "check --invert, --threshold or --pore-value"
         )
     removed = 0.0
+    shape = list(image.shape)
     work = image
     if not keep_isolated and porosity < 1.0:
         perc = percolating_cluster(image, axis)
         removed, work = float(perc.removed_fraction), perc.image
+        del perc
+    del image
+    connected_porosity, voxel_size = work.porosity, work.voxel_size
+    holder = [work]
+    del work  # handed over: the extraction frees the image once its distance map is computed (1 byte/voxel)
     t1 = time.perf_counter()
-    ext = extract_network(work, **_extraction_kwargs(args), conductance=getattr(args, "conductance", None))
+    kw = {**EXTRACT_DEFAULTS, "conductance": getattr(args, "conductance", None), **_extraction_kwargs(args)}
+    ext = _extract(holder, **kw)
     t_ext = time.perf_counter() - t1
     net = ext.network
     return {
         "_network": net,
         "_extraction": ext,
-        "_image": image,
         "source": str(source) if source is not None else _SAMPLE,
         "source_kind": "image",
         "conductance": net.conduit_model,
-        "shape": list(image.shape),
-        "voxel_size_m": image.voxel_size,
+        "shape": shape,
+        "voxel_size_m": voxel_size,
         "porosity": porosity,
         "axis": axis,
         "removed_fraction": removed,
-        "connected_porosity": work.porosity,
+        "connected_porosity": connected_porosity,
         "network_porosity": float(ext.porosity),
         "min_radius_voxels": ext.info.min_radius,
         "extent_radii": ext.info.extent,
@@ -233,7 +239,6 @@ def run_extract(args: argparse.Namespace) -> int:
     details = _extract_from_image(args, args.image, args.axis, keep_isolated=args.keep_isolated)
     net = details.pop("_network")
     details.pop("_extraction")
-    details.pop("_image")
     summary = {**details, **_network_stats(net)}
     try:
         if "network_file" in outs:

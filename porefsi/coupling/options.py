@@ -41,6 +41,9 @@ class DrainageOptions:
 
     rate: float = option(1.25e-13, "volumetric injection rate (paper case A)", limits=_POSITIVE, unit="m^3/s")
     t_end: float = option(20.0, "injection time (paper: 20 s)", limits=_POSITIVE, unit="s")
+    scheme: str = option("exact", "exact = a pressure solve after every event (the reference); adaptive = "
+                         "quasi-static fills in certified batches, local pressure updates elsewhere (docs/drainage.md)",
+                         choices=("exact", "adaptive"))
 
     def __post_init__(self):
         validate(self, "drainage")
@@ -59,9 +62,10 @@ class SolidOptions:
     density: float = option(GRAIN_DENSITY, "grain density (quartz sandstone)", limits=Material.LIMITS["density"],
                             unit="kg/m^3")
     linear_solver: str = option("direct", "solid linear solves: direct = sparse LU factorised once and reused while "
-                                "the tangent holds (fastest to ~1e5 dofs); amg = CG + smoothed aggregation (large "
-                                "meshes); jacobi = Jacobi-CG; auto = AMG-CG for a matrix's first 20 solves, then a "
-                                "reused LU of it up to 1e5 dofs",
+                                "the tangent holds (fastest to ~1e5 dofs; above 1e5 free dofs, or where the factor "
+                                "would not fit in memory, AMG-CG is used instead, with a warning); amg = CG + smoothed "
+                                "aggregation (large meshes); jacobi = Jacobi-CG; auto = AMG-CG for a matrix's first 20 "
+                                "solves, then a reused LU of it up to 1e5 dofs",
                                 choices=("direct", "amg", "jacobi", "auto"))
     load_axis: str = option("z", "axis of the mechanical load (fixed low face, moving high face)",
                             choices=("x", "y", "z"))

@@ -7,6 +7,7 @@ turns its sections into :class:`~porefsi.coupling.options.CoupledOptions` first.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 from porefsi.coupling.interface import Interface
 from porefsi.coupling.options import CoupledOptions, SolidOptions
@@ -17,11 +18,16 @@ from porefsi.image.voxel_image import VoxelImage, axis_index
 from porefsi.network.extract import Extraction, extract_network
 from porefsi.network.network import Network
 from porefsi.solid.bc import check_load_path, uniaxial_bcs
+from porefsi.solid.footprint import choose_linear_solver
 from porefsi.solid.materials import make_material
 from porefsi.solid.mesh import MeshResult, SolidMesh, mesh_solid
 from porefsi.solid.model import SolidModel
 
-__all__ = ["CoupledProblem", "build_problem", "build_solid", "extract_flow_network"]
+__all__ = ["CoupledProblem", "build_problem", "build_solid", "extract_flow_network", "SolverChoiceWarning"]
+
+
+class SolverChoiceWarning(UserWarning):
+    """The solid got another linear solver than the one requested (a direct solve too large for the machine)."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -92,6 +98,11 @@ def extract_flow_network(image: VoxelImage, axis: str, conductance: str) -> Extr
 def build_solid(image: VoxelImage, options: SolidOptions) -> tuple[MeshResult, SolidModel]:
     """The solid mesh of ``image`` and its model with the uniaxial loading frame of ``options``.
 
+    ``solid.linear_solver = "direct"`` on a system too large to factorise (above
+    :data:`~porefsi.solid.footprint.DIRECT_MAX_DOFS` free dofs, or a factor that would not fit in
+    memory) gets AMG-CG instead, with a :class:`SolverChoiceWarning` saying so
+    (:func:`porefsi.solid.footprint.choose_linear_solver`).
+
     Raises
     ------
     MeshError
@@ -104,7 +115,12 @@ def build_solid(image: VoxelImage, options: SolidOptions) -> tuple[MeshResult, S
     if options.strain_rate != 0:
         check_load_path(mres.mesh, ax)  # a load frame needs solid joining its two faces
     bcs = uniaxial_bcs(ax, rate=-options.strain_rate * image.extent[ax])
-    return mres, SolidModel(mres.mesh, material, bcs, order=options.order, linear_solver=options.linear_solver)
+    model = SolidModel(mres.mesh, material, bcs, order=options.order, linear_solver=options.linear_solver)
+    choice = choose_linear_solver(options.linear_solver, model.n_dofs)
+    if choice.reason:  # "direct" on a system whose factor would not pay or not fit
+        warnings.warn(choice.reason, SolverChoiceWarning, stacklevel=2)
+        model.linear_solver = choice.kind
+    return mres, model
 
 
 def build_problem(image: VoxelImage, options: CoupledOptions | None = None) -> CoupledProblem:

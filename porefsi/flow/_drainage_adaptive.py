@@ -40,13 +40,15 @@ from porefsi.flow import _kernels as kern
 from porefsi.flow._drainage_engine import Engine
 from porefsi.flow._drainage_graph import DrainageGraph
 
-__all__ = ["AdaptiveEngine"]
+__all__ = ["AdaptiveEngine", "DEFAULT_LOCAL_SOLVES", "DEFAULT_HOPS", "DEFAULT_LOCAL_MENISCI"]
 
 #: Relative safety of the certificate against round-off in the bound (as the exact scheme's skip).
 _SAFETY = 1e-9
 
-#: Residual target of the adaptive scheme's global split solves (pressure errors ~1e-5 Pa measured).
-_SPLIT_RTOL = 1e-9
+#: Defaults of the knobs (see docs/drainage.md, "Adaptive scheme", for the measurements).
+DEFAULT_LOCAL_SOLVES = 8
+DEFAULT_HOPS = 3
+DEFAULT_LOCAL_MENISCI = 8
 
 _RES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -71,7 +73,9 @@ class AdaptiveEngine(Engine):
     graph, rate, inlet_pressure, solver, max_active_set_iter
         As for :class:`~porefsi.flow._drainage_engine.Engine`.
     skip_solves
-        Ignored: the batch certificate replaces the exact scheme's per-jump skip.
+        As for the exact engine: a jump that no batch certified still skips its solve when the
+        exact scheme's one-path bound allows (measured: that bound, with the current wetting
+        region, certifies more jumps than the batch bound, which must hold for the batch's end).
     batch : int
         Most fills predicted (and certified) per batch; cost only, never the outcome.
     hops : int
@@ -82,22 +86,22 @@ class AdaptiveEngine(Engine):
 
     def __init__(self, graph: DrainageGraph, rate: float | None, inlet_pressure: float | None,
                  solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None,
-                 batch: int = 64, hops: int = 3, local_solves: int = 8):
-        if solver == "auto":
-            solver = "direct" if graph.n + 1 <= 400 else "split"
-        super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=False,
+                 batch: int = 64, hops: int = DEFAULT_HOPS, local_solves: int = DEFAULT_LOCAL_SOLVES,
+                 local_menisci: int = DEFAULT_LOCAL_MENISCI):
+        super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=skip_solves,
                          max_active_set_iter=max_active_set_iter)
-        if self.solver.method == "split":
-            self.solver.rtol = _SPLIT_RTOL
+        self.max_menisci = int(local_menisci)
         self.batch = int(batch)
         self.hops = int(hops)
         self.max_local = int(local_solves)
         self.local_left = 0  # local solves left before the next global one
-        self.ref_data = np.zeros(0)  # matrix values, right-hand side and field of the last global solve
-        self.ref_rhs = np.zeros(0)
-        self.ref_P = np.zeros(0)
+        self.has_ref = False  # whether a global solve has set the reference below
+        self.ref_data = np.zeros(graph.indices.size)  # matrix values, right-hand side and field of the
+        self.ref_rhs = np.zeros(graph.n + 1)  # last global solve: the far field of local solves
+        self.ref_P = np.zeros(graph.n + 1)
         self.n_local = 0
         self.n_global = 0
+        self.last_global = -2  # event of the last global solve
         self.dn = np.full(graph.n, np.inf)  # d_N: shortest non-wetting path resistance from the inlet
         self.dn_full = 0  # full pores d_N accounts for (-1: stale, recomputed before the next batch)
         self.n_certified = 0
@@ -136,18 +140,21 @@ class AdaptiveEngine(Engine):
         A, rhs, x = self.assemble(cond, men, fa)
         old = self.P
         P = None
-        if not force_global and self.local_left > 0 and self.ref_P.size:
+        if not force_global and self.local_left > 0 and self.has_ref and x.size <= self.max_menisci:
             P = self._local(A, rhs, x)
         glob = P is None
         if glob:
             nmask = np.concatenate([self.full, [True]])
-            P = self.solver.solve(A, rhs, x0=old, hint=lambda: self._hint(x), nmask=nmask)
+            frequent = self.n_events - self.last_global <= 1
+            P = self.solver.solve(A, rhs, x0=old, hint=lambda: self._hint(x), nmask=nmask, frequent=frequent)
+            self.last_global = self.n_events
         else:
             self.local_left -= 1
             self.n_local += 1
         P[:self.g.n][self.trapped] = old[:self.g.n][self.trapped]
         if glob and not force_global:
             self.ref_data, self.ref_rhs, self.ref_P = A.data.copy(), rhs.copy(), P.copy()
+            self.has_ref = True
             self.local_left = self.max_local
             self.n_global += 1
         self.P = P

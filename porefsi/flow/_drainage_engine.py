@@ -103,7 +103,7 @@ class Engine:
         cond, men, fa = self.conductances()
         A, rhs, x = self.assemble(cond, men, fa)
         old = self.P
-        nmask = np.concatenate([self.full, [True]]) if self.solver.method == "split" else None
+        nmask = np.concatenate([self.full, [True]]) if self.solver.method in ("split", "hybrid") else None
         P = self.solver.solve(A, rhs, x0=old, hint=lambda: self._hint(x), nmask=nmask)
         P[:self.g.n][self.trapped] = old[:self.g.n][self.trapped]
         self.P = P

@@ -43,7 +43,7 @@ from porefsi.image.voxel_image import axis_index
 from porefsi.network.network import Network
 
 __all__ = ["DrainageSimulator", "DrainageResult", "simulate_drainage", "PAPER_RATE", "PAPER_T_END",
-           "HISTORY_COLUMNS", "OUTLET_PRESSURE", "SCHEMES"]
+           "HISTORY_COLUMNS", "OUTLET_PRESSURE", "SCHEMES", "DEFAULT_SCHEME"]
 
 #: The paper's injection rate, m³/s, and injection time, s.
 PAPER_RATE = 1.25e-13
@@ -66,6 +66,8 @@ HISTORY_COLUMNS = ("time_s", "injected_m3", "sw", "inlet_pressure_pa", "capillar
 #: Drainage schemes: ``'exact'`` (a pressure solve after every event, the reference) and
 #: ``'adaptive'`` (certified quasi-static batches without solves, dynamic events elsewhere).
 SCHEMES = ("exact", "adaptive")
+#: The scheme the command line and the case file use unless told otherwise.
+DEFAULT_SCHEME = "exact"
 
 
 def _make_engine(graph, rate, inlet_pressure, opts: dict) -> Engine:
@@ -76,6 +78,21 @@ def _make_engine(graph, rate, inlet_pressure, opts: dict) -> Engine:
 
         return AdaptiveEngine(graph, rate, inlet_pressure, **o)
     return Engine(graph, rate, inlet_pressure, **o)
+
+
+def _adaptive_options(local_solves, hops, local_menisci) -> dict:
+    """Validated knobs of the adaptive scheme (defaults from the measurements in docs/drainage.md)."""
+    from porefsi.flow._drainage_adaptive import DEFAULT_HOPS, DEFAULT_LOCAL_MENISCI, DEFAULT_LOCAL_SOLVES
+
+    out = {}
+    for name, v, lo, default in (("local_solves", local_solves, 0, DEFAULT_LOCAL_SOLVES),
+                                 ("hops", hops, 1, DEFAULT_HOPS),
+                                 ("local_menisci", local_menisci, 0, DEFAULT_LOCAL_MENISCI)):
+        v = default if v is None else v
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise InputError(f"{name} must be an integer >= {lo}, got {v!r}")
+        out[name] = int(v)
+    return out
 
 
 def _positive(name, v, unit):
@@ -140,6 +157,7 @@ class DrainageSimulator:
     def __init__(self, net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: float = PAPER_RATE,
                  inlet_pressure: float | None = None, axis="x", solver: str = "auto",
                  skip_solves: bool | str = "auto", max_active_set_iter: int | None = None, scheme: str = "exact",
+                 local_solves: int | None = None, hops: int | None = None, local_menisci: int | None = None,
                  _keep=None):
         if not isinstance(net, Network):
             raise InputError(f"net must be a porefsi Network, got {type(net).__name__}")
@@ -166,6 +184,10 @@ class DrainageSimulator:
                              "batches, see docs/drainage.md)")
         self._opts = dict(solver=solver, skip_solves=bool(skip_solves), max_active_set_iter=max_active_set_iter,
                           scheme=scheme)
+        if scheme == "adaptive":
+            self._opts.update(_adaptive_options(local_solves, hops, local_menisci))
+        elif local_solves is not None or hops is not None or local_menisci is not None:
+            raise InputError("local_solves, hops and local_menisci are options of scheme='adaptive' only")
         self._engine = _make_engine(self.graph, self.rate, self.inlet_pressure_bc, self._opts)
 
     # -- sizes and counters ----------------------------------------------------------------
@@ -181,12 +203,19 @@ class DrainageSimulator:
 
     @property
     def counters(self) -> dict:
-        """Event and solve counts: events, fills, jumps, solves, skipped solves, AMG setups, ..."""
+        """Event and solve counts: events, fills, jumps, solves, skipped solves, AMG setups, ...
+
+        The adaptive scheme adds ``n_certified_fills`` (quasi-static fills certified without a
+        solve), ``n_local_solves`` and ``n_global_solves``.
+        """
         e = self._engine
-        return dict(n_events=e.n_events, n_fills=e.n_fills, n_jumps=e.n_jumps, n_solves=e.solver.n_solves,
-                    n_skipped_solves=e.n_skipped, n_active_set_changes=e.n_changes,
-                    max_active_set_iterations=e.max_iter_seen, n_solver_setups=e.solver.n_setups,
-                    cg_iterations=e.solver.iterations)
+        out = dict(n_events=e.n_events, n_fills=e.n_fills, n_jumps=e.n_jumps, n_solves=e.solver.n_solves,
+                   n_skipped_solves=e.n_skipped, n_active_set_changes=e.n_changes,
+                   max_active_set_iterations=e.max_iter_seen, n_solver_setups=e.solver.n_setups,
+                   cg_iterations=e.solver.iterations)
+        if hasattr(e, "n_certified"):
+            out.update(n_certified_fills=e.n_certified, n_local_solves=e.n_local, n_global_solves=e.n_global)
+        return out
 
     @property
     def breakthrough_time(self) -> float:
@@ -386,7 +415,8 @@ class DrainageSimulator:
 def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: float = PAPER_RATE,
                       t_end: float = PAPER_T_END, times=None, axis="x", inlet_pressure: float | None = None,
                       stop_at_breakthrough: bool = False, checkpoint=None, checkpoint_every: float = 60.0,
-                      resume: bool = False, progress=None, **options) -> DrainageResult:
+                      resume: bool = False, progress=None, report=None, report_every: float = 5.0,
+                      **options) -> DrainageResult:
     """Run a drainage from t = 0 to ``t_end`` and collect the time series and snapshots.
 
     Parameters
@@ -414,8 +444,15 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
         rebuilt, so it agrees to the solver tolerance). ``seconds`` counts all processes.
     progress : callable, optional
         Called as ``progress(sim, seconds)`` after each checkpoint (e.g. to print a progress line).
+    report : callable, optional
+        Called as ``report(sim, seconds)`` once the run starts (after a resumed run's checkpoint is
+        read) and then every ``report_every`` seconds of wall time, between two events (with or
+        without checkpoints: a progress line for logs).
+    report_every : float
+        Wall seconds between two ``report`` calls (default 5).
     **options
-        ``solver``, ``skip_solves``, ``max_active_set_iter`` (see :class:`DrainageSimulator`).
+        ``solver``, ``skip_solves``, ``max_active_set_iter``, ``scheme``, ``local_solves``,
+        ``hops`` (see :class:`DrainageSimulator`).
 
     Returns
     -------
@@ -436,6 +473,7 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
     if resume and checkpoint is None:
         raise InputError("resume=True needs the checkpoint file to resume from (checkpoint=...)")
     every = _positive("checkpoint_every", checkpoint_every, "s")
+    report_every = _positive("report_every", report_every, "s")
     t0 = _time.perf_counter()
     key = None
     if checkpoint is not None:
@@ -451,7 +489,9 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
         snaps, k, before = [], 0, 0.0
     e = sim._engine
     targets = [*ts.tolist(), t_end]
-    last = _time.perf_counter()
+    last = last_report = _time.perf_counter()
+    if report is not None:  # the run has started (inputs and checkpoint checked)
+        report(sim, before + last_report - t0)
 
     def save():
         nonlocal last
@@ -468,6 +508,9 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
             while e.t < t and not stopped:
                 e.step(t)
                 stopped = stop_at_breakthrough and not np.isnan(e.t_breakthrough)
+                if report is not None and _time.perf_counter() - last_report >= report_every:
+                    last_report = _time.perf_counter()
+                    report(sim, before + last_report - t0)
                 if checkpoint is not None and (interrupted() or _time.perf_counter() - last >= every):
                     save()
                     if interrupted():

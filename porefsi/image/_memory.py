@@ -9,37 +9,12 @@ operating system killing the process) later.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
+from porefsi._memory import available_memory, format_bytes
 from porefsi.errors import InputError
 
 __all__ = ["available_memory", "require_memory", "format_bytes", "npy_header"]
-
-
-def available_memory() -> int | None:
-    """Bytes of memory available to a new allocation (Linux ``MemAvailable``), or None if unknown."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
-def format_bytes(n: float) -> str:
-    """``n`` bytes as a short text (e.g. '1.5 GiB')."""
-    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB", "PiB"):
-        if abs(n) < 1024 or unit == "PiB":
-            return f"{n:.3g} {unit}" if unit != "bytes" else f"{int(n)} bytes"
-        n /= 1024
-    return f"{n:.3g} EiB"  # pragma: no cover
 
 
 def require_memory(shape, dtype, path, what: str = "the image") -> int:

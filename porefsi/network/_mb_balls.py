@@ -1,7 +1,7 @@
 """Maximal balls and their master/slave hierarchy (private kernels of the extraction).
 
 Integer voxel coordinates: voxel ``(i, j, k)`` has centre ``(i, j, k)`` here. Twins:
-``tests/reference/extract_ref.py::maximal_balls`` and ``::families``.
+``tests/reference/extract_ref.py::maximal_balls``, ``::ball_reach`` and ``::families``.
 """
 
 from __future__ import annotations
@@ -17,37 +17,38 @@ from porefsi._numba import jit
 # Maximal balls
 # --------------------------------------------------------------------------------------------
 @jit
-def _maximal_balls(dt2, min_dt2, sqrt_tab, offsets, scratch):
+def _maximal_balls(dt2, min_dt2, offsets, off_class, reach2, scratch, like):
     """Centres of the maximal balls, sorted by radius descending then linear index ascending.
 
-    A candidate ball sits at every voxel with ``dt2 >= min_dt2`` (radius ``sqrt(dt2)``); it is
-    removed when the ball of a voxel ``q = p + o`` for one of the ``offsets`` contains it,
-    ``sqrt(dt2[q]) >= sqrt(dt2[p]) + |o|``.
+    A candidate ball sits at every voxel ``p`` with ``dt2[p] >= min_dt2``; it is the digital ball
+    ``B(p) = {x : |x - p|^2 < dt2[p]}`` (lattice points). It is removed when it lies inside the
+    ball of a voxel ``q = p + o`` for one of the ``offsets``: ``B(p)`` is inside ``B(q)`` exactly
+    when ``dt2[q] > reach2[c, dt2[p]]``, the largest squared distance from ``q`` to a point of
+    ``B(p)`` (``c = off_class[o]``, see :func:`ball_reach_table`).
 
     Parameters
     ----------
     dt2 : ndarray of uint16 or int32, shape (nx, ny, nz)
     min_dt2 : int
-    sqrt_tab : ndarray of float64
-        ``sqrt(n)`` for ``n = 0 .. max(dt2)``.
     offsets : ndarray of int64, shape (n_off, 3)
         Neighbour offsets tested (the zero offset excluded).
+    off_class : ndarray of int64, shape (n_off,)
+        Row of ``reach2`` for each offset.
+    reach2 : ndarray of int64, shape (n_class, >= max(dt2) + 1)
     scratch : ndarray of int32, shape (nx, ny, nz)
         All -1 on entry and on exit (used to flag the maximal balls, so no list grows).
+    like : ndarray of int32 or int64
+        Its dtype is the returned indices' (int32 halves their memory when they fit).
 
     Returns
     -------
-    order : ndarray of int64, shape (M,)
+    order : ndarray of ``like.dtype``, shape (M,)
         Linear (C-order) indices of the maximal-ball centres.
     n_candidates : int
     """
     nx, ny, nz = dt2.shape
-    eps = 1e-9
     ncand = 0
     n_off = offsets.shape[0]
-    olen = np.empty(n_off, np.float64)
-    for t in range(n_off):
-        olen[t] = math.sqrt(offsets[t, 0] ** 2 + offsets[t, 1] ** 2 + offsets[t, 2] ** 2)
     top = 0
     for i in range(nx):
         for j in range(ny):
@@ -62,7 +63,6 @@ def _maximal_balls(dt2, min_dt2, sqrt_tab, offsets, scratch):
                 if dp < min_dt2:
                     continue
                 ncand += 1
-                rp = sqrt_tab[dp]
                 maximal = True
                 for t in range(n_off):
                     a = i + offsets[t, 0]
@@ -71,7 +71,7 @@ def _maximal_balls(dt2, min_dt2, sqrt_tab, offsets, scratch):
                     if a < 0 or a >= nx or b < 0 or b >= ny or c < 0 or c >= nz:
                         continue
                     dq = dt2[a, b, c]
-                    if dq > dp and sqrt_tab[dq] >= rp + olen[t] - eps:
+                    if dq > dp and dq > reach2[off_class[t], dp]:
                         maximal = False
                         break
                 if maximal:
@@ -80,7 +80,7 @@ def _maximal_balls(dt2, min_dt2, sqrt_tab, offsets, scratch):
     start = np.zeros(top + 2, np.int64)
     for t in range(1, top + 2):
         start[t] = start[t - 1] + count[t - 1]
-    order = np.empty(start[top + 1], np.int64)
+    order = np.empty(start[top + 1], like.dtype)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
@@ -90,6 +90,64 @@ def _maximal_balls(dt2, min_dt2, sqrt_tab, offsets, scratch):
                     order[start[key]] = (i * ny + j) * nz + k
                     start[key] += 1
     return order, ncand
+
+
+@jit
+def _reach_table(classes, top):
+    """``reach2[c, d]``: see :func:`ball_reach_table` (``classes`` sorted, non-negative)."""
+    n_cls = classes.shape[0]
+    best = np.full((n_cls, top + 1), -1, np.int64)  # max over |y|^2 = n of y . o (sorted)
+    a = 0
+    while a * a <= top:
+        for b in range(a + 1):
+            if a * a + b * b > top:
+                break
+            for c in range(b + 1):
+                n = a * a + b * b + c * c
+                if n > top:
+                    break
+                for t in range(n_cls):
+                    v = a * classes[t, 0] + b * classes[t, 1] + c * classes[t, 2]
+                    if v > best[t, n]:
+                        best[t, n] = v
+        a += 1
+    reach2 = np.zeros((n_cls, top + 1), np.int64)
+    for t in range(n_cls):
+        o2 = classes[t, 0] ** 2 + classes[t, 1] ** 2 + classes[t, 2] ** 2
+        run = -1
+        for d in range(1, top + 1):
+            n = d - 1
+            if best[t, n] >= 0 and n + 2 * best[t, n] > run:
+                run = n + 2 * best[t, n]
+            reach2[t, d] = run + o2
+    return reach2
+
+
+def ball_reach_table(offsets, top):
+    """Largest squared distance from a neighbour to the digital ball of each size.
+
+    For an offset ``o`` and ``d >= 1``: ``max {|y - o|^2 : y integer, |y|^2 < d}``, i.e. how far
+    the voxel ``p + o`` is from the farthest voxel of the ball ``B(p)`` of ``dt2[p] = d``. By the
+    symmetry of the lattice ball it depends only on the sorted absolute components of ``o`` (its
+    class): with ``y`` aligned against ``o``, it is ``max_{n < d} (n + 2 max_{|y|^2 = n} y . o) +
+    |o|^2``, where ``y`` and ``o`` both run over sorted non-negative components.
+
+    Parameters
+    ----------
+    offsets : ndarray of int64, shape (n_off, 3)
+    top : int
+        Largest ``d`` needed (the maximum of the distance map).
+
+    Returns
+    -------
+    off_class : ndarray of int64, shape (n_off,)
+    reach2 : ndarray of int64, shape (n_class, top + 1)
+        ``reach2[:, 0]`` is unused (0).
+    """
+    key = -np.sort(-np.abs(np.asarray(offsets, np.int64)), axis=1)
+    classes, off_class = np.unique(key, axis=0, return_inverse=True)
+    reach2 = _reach_table(np.ascontiguousarray(classes, np.int64), int(top))
+    return np.ascontiguousarray(off_class.reshape(-1), np.int64), reach2
 
 
 def ball_offsets(half_width):
@@ -120,22 +178,37 @@ def _isqrt(x):
 
 
 @jit
-def _families(dt2, balls, sqrt_tab, extent, ratio, labels):
+def _owner(v):
+    """Ball index stored in a painted label (cores are flagged as ``-2 - owner``), -1 if unpainted."""
+    if v >= 0:
+        return v
+    if v <= -2:
+        return -2 - v
+    return -1
+
+
+@jit
+def _families(dt2, balls, sqrt_tab, extent, ratio, labels, core):
     """Build the master/slave hierarchy of the maximal balls and paint the voxels they cover.
 
-    Balls are visited in the order given (radius descending). Ball ``k`` scans the voxels it
-    covers (squared distance to its centre ``< dt2``); voxels nobody covers yet are painted
-    ``k``; among the balls that already cover some of its voxels (all at least as large as
-    ``k``) it adopts the first-visited, i.e. largest, one whose family master either lies within
-    ``extent`` master radii of ``k``'s centre or is clearly larger than ``k``
-    (``R_k < ratio * R_master``). With no such ball ``k`` becomes a master (a pore) and claims
-    every voxel of its ball. So a channel narrower than its master stays in the family however
-    long it is, while a uniform channel (no larger master) is cut every ``extent`` radii.
+    Balls are visited in the order given (radius descending). A ball whose centre voxel lies in
+    the *core* of a ball visited before it (the voxels within ``core`` times that ball's radius
+    of its centre) is skipped: it joins the family of the ball owning its centre voxel and paints
+    nothing (with ``core > 0`` the balls kept are spaced about ``core`` radii apart along the
+    medial axis, so the work per voxel does not grow with the pore radius in voxels; ``core = 0``
+    skips nothing). Every other ball ``k`` scans the voxels it covers (squared distance to its
+    centre ``< dt2``); voxels nobody covers yet are painted ``k``; among the balls that already
+    cover some of its voxels (all at least as large as ``k``) it adopts the first-visited, i.e.
+    largest, one whose family master either lies within ``extent`` master radii of ``k``'s
+    centre or is clearly larger than ``k`` (``R_k < ratio * R_master``). With no such ball ``k``
+    becomes a master (a pore) and claims every voxel of its ball. So a channel narrower than its
+    master stays in the family however long it is, while a uniform channel (no larger master) is
+    cut every ``extent`` radii.
 
     Parameters
     ----------
     dt2 : ndarray of uint16 or int32, shape (nx, ny, nz)
-    balls : ndarray of int64, shape (M,)
+    balls : ndarray of int32 or int64, shape (M,)
         Linear indices of maximal-ball centres, radius descending.
     sqrt_tab : ndarray of float64
         ``sqrt(n)`` for ``n = 0 .. max(dt2)``.
@@ -145,24 +218,36 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels):
         Balls smaller than ``ratio`` times the master radius join regardless of distance.
     labels : ndarray of int32, shape (nx, ny, nz)
         All -1 on entry; on exit the index of the ball owning each covered voxel, -1 elsewhere.
+    core : float
+        Core radius in ball radii, in [0, 1).
 
     Returns
     -------
     master : ndarray of int32, shape (M,)
         Index (into ``balls``) of each ball's family master; ``master[k] == k`` for masters.
+    n_kept : int
+        Balls scanned (not skipped).
     """
     nx, ny, nz = dt2.shape
     nb = balls.size
     master = np.empty(nb, np.int32)
     stamp = np.full(nb, -1, np.int32)
+    c2 = core * core
+    n_kept = 0
     for k in range(nb):
-        p = balls[k]
+        p = np.int64(balls[k])
         i = p // (ny * nz)
         j = (p // nz) % ny
         l = p % nz
+        centre = labels[i, j, l]
+        if centre <= -2:
+            master[k] = master[-2 - centre]
+            continue
+        n_kept += 1
         d2 = dt2[i, j, l]
         rk = sqrt_tab[d2]
         lim = d2 - 1
+        cl = c2 * d2
         h = _isqrt(lim)
         best = nb
         for a in range(max(i - h, 0), min(i + h, nx - 1) + 1):
@@ -172,24 +257,27 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels):
                 dab = da + (b - j) * (b - j)
                 w = _isqrt(lim - dab)
                 for c in range(max(l - w, 0), min(l + w, nz - 1) + 1):
-                    o = labels[a, b, c]
-                    if o < 0:
-                        labels[a, b, c] = k
-                    elif o < best:
+                    v = labels[a, b, c]
+                    if v == -1:  # paint (flagged if in k's core)
+                        labels[a, b, c] = -2 - k if dab + (c - l) * (c - l) < cl else k
+                        continue
+                    o = _owner(v)
+                    if o < best:
                         r = master[o]
-                        if stamp[r] == k:
-                            continue
-                        q = balls[r]
-                        qi = q // (ny * nz)
-                        qj = (q // nz) % ny
-                        ql = q % nz
-                        s = (qi - i) * (qi - i) + (qj - j) * (qj - j) + (ql - l) * (ql - l)
-                        rm = sqrt_tab[dt2[qi, qj, ql]]
-                        reach = extent * rm
-                        if s < reach * reach or rk < ratio * rm:
-                            best = o
-                        else:
-                            stamp[r] = k
+                        if stamp[r] != k:
+                            q = np.int64(balls[r])
+                            qi = q // (ny * nz)
+                            qj = (q // nz) % ny
+                            ql = q % nz
+                            s = (qi - i) * (qi - i) + (qj - j) * (qj - j) + (ql - l) * (ql - l)
+                            rm = sqrt_tab[dt2[qi, qj, ql]]
+                            reach = extent * rm
+                            if s < reach * reach or rk < ratio * rm:
+                                best = o
+                            else:
+                                stamp[r] = k
+                    if v >= 0 and dab + (c - l) * (c - l) < cl:  # flag a painted voxel of k's core
+                        labels[a, b, c] = -2 - v
         if best < nb:
             master[k] = master[best]
         else:
@@ -201,5 +289,9 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels):
                     dab = da + (b - j) * (b - j)
                     w = _isqrt(lim - dab)
                     for c in range(max(l - w, 0), min(l + w, nz - 1) + 1):
-                        labels[a, b, c] = k
-    return master
+                        labels[a, b, c] = -2 - k if labels[a, b, c] <= -2 else k
+    flat = labels.reshape(-1)
+    for n in range(flat.size):
+        if flat[n] <= -2:
+            flat[n] = -2 - flat[n]
+    return master, n_kept

@@ -45,7 +45,10 @@ def _flood(dt2, labels, buf, queue):
     labels : ndarray of int32, shape (nx, ny, nz)
         Seeds ``>= 0``, -1 elsewhere; grown in place.
     buf, queue : ndarray of int32 or int64, shape (>= number of unlabelled pore voxels,)
-        Work space (voxel indices sorted by level; the growth queue).
+        Work space (voxel indices sorted by level; the growth queue). They may be the same
+        array: at level L the queue holds distinct unlabelled voxels of level >= L, so it never
+        holds more entries than ``buf``'s segments of the levels >= L, which are read (the
+        current one during its scan, before the queue passes it) and never read again.
 
     Returns
     -------

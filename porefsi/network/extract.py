@@ -5,9 +5,11 @@ Pipeline (each stage a numba kernel gathered in :mod:`porefsi.network._kernels`)
 1. squared Euclidean distance map of the pore space (uint16, int32 if a radius reaches 256
    voxels; separable lower-envelope EDT);
 2. candidate balls at every pore voxel whose radius reaches the noise floor, minus those
-   contained in a neighbour's ball: the *maximal balls*;
+   whose digital ball lies inside a neighbour's: the *maximal balls*;
 3. master/slave hierarchy: balls visited largest first adopt the largest ball they overlap
-   (if its family master is near enough or clearly larger), else become masters = pores;
+   (if its family master is near enough or clearly larger), else become masters = pores; a
+   ball centred in the core of a larger one joins it unscanned, so the work per voxel does not
+   grow with the pore radius in voxels;
 4. voxel labels: the master-ball centres seed a priority flood on the distance map, so
    regions are connected and meet at the narrowest sections;
 5. throats are the interfaces between pore labels (pores separated by no real constriction
@@ -24,6 +26,7 @@ import time
 
 import numpy as np
 
+from porefsi._memory import available_memory, format_bytes
 from porefsi.errors import InputError, NetworkError
 from porefsi.image.voxel_image import VoxelImage
 from porefsi.network import _kernels as kern
@@ -37,13 +40,19 @@ from porefsi.network._mb_conduits import (
 )
 from porefsi.network.network import CONDUCTANCE_MODELS, Network
 
-__all__ = ["Extraction", "ExtractionInfo", "extract_network", "digital_radius", "MIN_SEGMENT"]
+__all__ = ["Extraction", "ExtractionInfo", "extract_network", "memory_needed", "digital_radius", "MIN_SEGMENT"]
 
 #: Largest uint16 squared distance kept (module constant so a test can force the int32 path).
 _DT2_CAP16 = int(kern.CAP16)
 
 #: Half-width of the neighbourhood searched for a ball containing a candidate ball, voxels.
 BALL_TEST_REACH = 1
+
+#: Core of a visited ball, in its radius: a later ball centred inside it is skipped (joins that
+#: ball's family without scanning its own ball), so the balls scanned are spaced about this many
+#: radii apart along the medial axis and the hierarchy's work per voxel does not grow with the
+#: pore radius in voxels (see ``_mb_balls._families``).
+BALL_CORE = 0.35
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,6 +68,9 @@ class ExtractionInfo:
         Pore voxels whose ball radius reaches ``min_radius``.
     n_maximal_balls : int
         Candidate balls not contained in a neighbour's ball.
+    n_scanned_balls : int
+        Maximal balls whose voxels the hierarchy scanned (the others lie in the core of a larger
+        ball, see :data:`BALL_CORE`).
     n_pores, n_throats : int
     n_pore_voxels : int
         Pore voxels in the image.
@@ -77,6 +89,7 @@ class ExtractionInfo:
     seconds: dict
     n_candidate_balls: int
     n_maximal_balls: int
+    n_scanned_balls: int
     n_pores: int
     n_throats: int
     n_pore_voxels: int
@@ -136,6 +149,33 @@ def _distance_map(pore: np.ndarray) -> np.ndarray:
     dt2 = np.empty(pore.shape, np.int32)
     kern._sq_edt(pore, dt2, int(kern.INF))
     return dt2
+
+
+def memory_needed(shape, n_pore: int) -> int:
+    """Bytes :func:`extract_network` allocates on top of the image, at its peak (an estimate).
+
+    The distance map (2 bytes per voxel; 4 if a radius reaches 256 voxels, not known before it
+    is computed) and the labels (4), plus per pore voxel 4 bytes (8 above 2^31 voxels) for the
+    flood's level-sorted list, which bounds the maximal-ball lists of the hierarchy (3 indices
+    per ball, balls about a quarter of the pore voxels or fewer, measured 0.2-0.25 on Berea at
+    1x-3x). Everything else (throats, sections) scales with the pores, not the voxels.
+    """
+    n_vox = int(np.prod([int(s) for s in shape], dtype=object))
+    index = 4 if n_vox < np.iinfo(np.int32).max else 8
+    return n_vox * 6 + int(n_pore) * index
+
+
+def _check_memory(shape, n_pore: int) -> None:
+    need = memory_needed(shape, n_pore)
+    avail = available_memory()
+    if avail is not None and need > avail:
+        raise InputError(
+            f"extracting a {'x'.join(str(int(s)) for s in shape)} image needs about {format_bytes(need)} more memory "
+            f"({need / float(np.prod(shape, dtype=object)):.2g} bytes per voxel) but {format_bytes(avail)} is "
+            "available; extract crops of it "
+            "(porefsi.image.ops.crop; there is no chunked extraction), coarsen it (porefsi.image.ops.downsample), "
+            "or free memory"
+        )
 
 
 def _check(image, min_radius, extent, merge_ratio):
@@ -207,7 +247,8 @@ def extract_network(
     TypeError
         If ``image`` is not a VoxelImage.
     InputError
-        All-solid or all-pore image, an axis shorter than 3 voxels, or bad parameters.
+        All-solid or all-pore image, an axis shorter than 3 voxels, bad parameters, or more
+        memory needed (:func:`memory_needed`) than is available (checked before allocating).
     NetworkError
         No ball reaches ``min_radius`` (no pore found), or no two pore regions touch (no throat).
 
@@ -240,17 +281,30 @@ def extract_network(
     >>> ext.network.n_pores, ext.network.n_throats
     (8, 12)
     """
+    return _extract([image], min_radius=min_radius, extent=extent, merge_ratio=merge_ratio, conductance=conductance)
+
+
+def _extract(holder: list, *, min_radius, extent, merge_ratio, conductance) -> Extraction:
+    """:func:`extract_network` of the image in ``holder`` (a one-item list, emptied).
+
+    The image is released once the distance map is computed: a caller that hands over its only
+    reference (the CLI) saves 1 byte per voxel at the peak.
+    """
+    image = holder.pop()
     min_radius, extent, merge_ratio = float(min_radius), float(extent), float(merge_ratio)
     n_pore = _check(image, min_radius, extent, merge_ratio)
     if conductance is not None and conductance not in CONDUCTANCE_MODELS:
         raise InputError(f"unknown conductance model {conductance!r}; use one of {CONDUCTANCE_MODELS}")
+    _check_memory(image.shape, n_pore)
+    shape, vs, origin = image.shape, image.voxel_size, image.origin.copy()
     laps = _Laps()
     dt2 = _distance_map(image.phases)
+    del image
     laps("edt")
     centre_idx, labels, counts = _pore_centres(dt2, min_radius, extent, merge_ratio, laps)
     counts["flooded"] = _flood_regions(dt2, labels, centre_idx, n_pore)
     laps("flood")
-    top = _pores_and_throats(image.shape, labels, dt2, centre_idx, merge_ratio, extent)
+    top = _pores_and_throats(shape, labels, dt2, centre_idx, merge_ratio, extent)
     laps("throats")
     if top.conns.shape[0] == 0:
         raise NetworkError(
@@ -261,16 +315,15 @@ def extract_network(
     geo = _conduits(dt2, labels, top, conductance)
     laps("sections")
     del dt2
-    net = _network(image, top, geo, conductance)
+    net = _network(shape, vs, origin, top, geo, conductance)
     labels.setflags(write=False)
     laps("assemble")
     info = ExtractionInfo(
         seconds=laps.total(), n_candidate_balls=counts["candidates"], n_maximal_balls=counts["balls"],
-        n_pores=top.n_pores, n_throats=int(top.conns.shape[0]), n_pore_voxels=n_pore,
+        n_scanned_balls=counts["scanned"], n_pores=top.n_pores, n_throats=int(top.conns.shape[0]), n_pore_voxels=n_pore,
         n_labelled_voxels=int(top.count.sum()), n_flooded_voxels=counts["flooded"], min_radius=min_radius,
         extent=extent, merge_ratio=merge_ratio,
     )
-    vs = image.voxel_size
     sections = {
         "area": geo.sec["area"] * vs**2,
         "face_area": geo.sec["n_faces"] * vs**2,
@@ -310,26 +363,30 @@ def _pore_centres(dt2, min_radius: float, extent: float, merge_ratio: float, lap
     sqrt_tab = np.sqrt(np.arange(max_d2 + 1, dtype=np.float64))
     min_dt2 = max(1, math.ceil(min_radius * min_radius - 1e-9))
     labels = np.full(dt2.shape, -1, np.int32)
-    balls, n_cand = kern._maximal_balls(dt2, np.int64(min_dt2), sqrt_tab, kern.ball_offsets(BALL_TEST_REACH), labels)
+    offsets = kern.ball_offsets(BALL_TEST_REACH)
+    off_class, reach2 = kern.ball_reach_table(offsets, max_d2)
+    like = np.empty(0, np.int32 if dt2.size < np.iinfo(np.int32).max else np.int64)
+    balls, n_cand = kern._maximal_balls(dt2, np.int64(min_dt2), offsets, off_class, reach2, labels, like)
+    del reach2
     laps("maximal_balls")
     if balls.size == 0:
         raise NetworkError(
             f"no pore found: the largest ball radius in the image is {math.sqrt(max_d2):.3g} voxels, "
             f"below min_radius={min_radius:g}; lower min_radius (>= 1; CLI --min-radius) or use a finer image"
         )
-    master = kern._families(dt2, balls, sqrt_tab, extent, merge_ratio, labels)
+    master, n_kept = kern._families(dt2, balls, sqrt_tab, extent, merge_ratio, labels, float(BALL_CORE))
     centre_idx = balls[master == np.arange(balls.size, dtype=np.int32)]
     laps("families")
     labels.fill(-1)
-    return centre_idx, labels, {"candidates": int(n_cand), "balls": int(balls.size)}
+    return centre_idx, labels, {"candidates": int(n_cand), "balls": int(balls.size), "scanned": int(n_kept)}
 
 
 def _flood_regions(dt2, labels, centre_idx, n_pore: int) -> int:
     """Stage 4: the priority flood of the distance map from one seed voxel per pore; voxels flooded."""
     labels.reshape(-1)[centre_idx] = np.arange(centre_idx.size, dtype=np.int32)
     itype = np.int32 if dt2.size < np.iinfo(np.int32).max else np.int64
-    n_work = n_pore - int(centre_idx.size)
-    return int(kern._flood(dt2, labels, np.empty(n_work, itype), np.empty(n_work, itype)))
+    buf = np.empty(n_pore - int(centre_idx.size), itype)
+    return int(kern._flood(dt2, labels, buf, buf))  # the queue may share the level-sorted list
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -384,11 +441,10 @@ def _conduits(dt2, labels, top: _Topology, conductance) -> _Conduits:
     return _Conduits(r_pore, r_throat, lt, lp, sec)
 
 
-def _network(image: VoxelImage, top: _Topology, geo: _Conduits, conductance) -> Network:
+def _network(shape, vs: float, origin, top: _Topology, geo: _Conduits, conductance) -> Network:
     """The :class:`Network` in SI units."""
-    vs = image.voxel_size
     return Network(
-        pore_coords=image.origin + (top.centre + 0.5) * vs,
+        pore_coords=origin + (top.centre + 0.5) * vs,
         pore_radius=geo.r_pore * vs,
         pore_volume=top.count * vs**3,
         throat_conns=top.conns,
@@ -397,8 +453,8 @@ def _network(image: VoxelImage, top: _Topology, geo: _Conduits, conductance) -> 
         throat_pore_length=geo.lp * vs,
         pore_faces=top.faces,
         voxel_size=vs,
-        shape=image.shape,
-        origin=image.origin,
+        shape=shape,
+        origin=origin,
         throat_shape_factor=geo.sec["throat_G"],
         pore_shape_factor=geo.sec["pore_G"],
         throat_duct_fraction=geo.sec["fraction"],

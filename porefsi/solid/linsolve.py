@@ -1,7 +1,9 @@
 """Linear solvers for the (condensed, SPD) elasticity systems: AMG-CG, Jacobi-CG, direct.
 
 Each factory ``make(A) -> solve(b) -> x`` follows
-:data:`porefsi.integrators.system.SolverFactory`. Unconverged solves raise
+:data:`porefsi.integrators.system.SolverFactory`; ``solve(b, rtol=...)`` overrides an iterative
+solve's relative tolerance for one call (an inexact Newton step asks only for what it needs; a
+direct solve ignores it). Unconverged solves raise
 :class:`~porefsi.errors.ConvergenceError` carrying the residual history.
 """
 
@@ -202,13 +204,32 @@ class AMGSolverFactory:
         self._pad = np.zeros(self.n_full)
 
     def _padded(self, A: sp.spmatrix) -> sp.bsr_matrix:
-        A = sp.coo_matrix(A)
-        cons = np.setdiff1d(np.arange(self.n_full), self.free)
-        rows = np.concatenate([self.free[A.row], cons])
-        cols = np.concatenate([self.free[A.col], cons])
-        diag = A.diagonal().mean() if A.nnz else 1.0
-        vals = np.concatenate([A.data, np.full(len(cons), diag)])
-        Af = sp.csr_matrix((vals, (rows, cols)), shape=(self.n_full, self.n_full))
+        """The full-size BSR matrix: ``A`` on the free rows and columns, the mean diagonal at the constrained.
+
+        Built row by row in CSR order (``free`` is sorted, so each free row keeps its sorted
+        columns): about two copies of ``A`` at the peak, where a COO detour would take five.
+        """
+        A = sp.csr_matrix(A)
+        A.sort_indices()
+        n_full, free = self.n_full, self.free
+        cons = np.setdiff1d(np.arange(n_full), free)
+        row_len = np.diff(A.indptr)
+        counts = np.ones(n_full, dtype=np.int64)
+        counts[free] = row_len
+        indptr = np.zeros(n_full + 1, dtype=np.int64)
+        np.cumsum(counts, out=indptr[1:])
+        idx_t = np.int32 if n_full < 2**31 and indptr[-1] < 2**31 else np.int64
+        data = np.empty(indptr[-1])
+        indices = np.empty(indptr[-1], dtype=idx_t)
+        dest = np.repeat(indptr[free] - A.indptr[:-1], row_len)
+        dest += np.arange(A.nnz, dtype=np.int64)
+        data[dest] = A.data
+        indices[dest] = free[A.indices]
+        del dest
+        data[indptr[cons]] = A.diagonal().mean() if A.nnz else 1.0
+        indices[indptr[cons]] = cons
+        Af = sp.csr_matrix((data, indices, indptr.astype(idx_t)), shape=(n_full, n_full))
+        Af.has_sorted_indices = True
         return Af.tobsr(blocksize=(3, 3))
 
     def setup(self, A: sp.spmatrix) -> None:
@@ -249,11 +270,12 @@ class AMGSolverFactory:
         if self.ml is None:
             self.setup(A)
 
-        def solve(b: np.ndarray) -> np.ndarray:
+        def solve(b: np.ndarray, rtol: float | None = None) -> np.ndarray:
             # a reused hierarchy gets at most rebuild_iterations before it is replaced
             cap = self.maxiter if state["fresh"] else self.rebuild_iterations
+            tol = self.rtol if rtol is None else float(rtol)
             try:
-                x, info = pcg(A, b, self.precondition, rtol=self.rtol, maxiter=cap, what="AMG-CG")
+                x, info = pcg(A, b, self.precondition, rtol=tol, maxiter=cap, what="AMG-CG")
                 ok = True
             except IndefiniteMatrixError:
                 raise  # a property of A: no hierarchy can help
@@ -264,7 +286,7 @@ class AMGSolverFactory:
             if not ok:  # stale hierarchy: rebuild for this matrix and solve again
                 self.setup(A)
                 state["fresh"] = True
-                x, info = pcg(A, b, self.precondition, rtol=self.rtol, maxiter=self.maxiter, what="AMG-CG")
+                x, info = pcg(A, b, self.precondition, rtol=tol, maxiter=self.maxiter, what="AMG-CG")
             self.last = info
             return x
 
@@ -277,6 +299,7 @@ class AMGSolverFactory:
 
 def jacobi_solver_factory(rtol: float = 1e-8, maxiter: int | None = None):
     """Factory of Jacobi-preconditioned CG solves (cheap setup; fine at small size)."""
+    default_rtol = rtol
 
     def make(A):
         A = sp.csr_matrix(A)
@@ -284,7 +307,11 @@ def jacobi_solver_factory(rtol: float = 1e-8, maxiter: int | None = None):
         if np.any(d <= 0):
             raise InputError("Jacobi-CG needs a positive diagonal; the matrix is not SPD")
         inv = 1.0 / d
-        return lambda b: pcg(A, b, lambda r: inv * r, rtol=rtol, maxiter=maxiter, what="Jacobi-CG")[0]
+        def solve(b, rtol: float | None = None):
+            tol = default_rtol if rtol is None else float(rtol)
+            return pcg(A, b, lambda r: inv * r, rtol=tol, maxiter=maxiter, what="Jacobi-CG")[0]
+
+        return solve
 
     return make
 
@@ -308,7 +335,7 @@ def direct_solver_factory(symmetric: bool = True):
             else:
                 lu = spla.splu(A)
 
-        def solve(b):
+        def solve(b, rtol: float | None = None):  # exact: a tolerance has nothing to loosen
             with single_thread_blas():
                 return lu.solve(np.asarray(b, dtype=float))
 
@@ -367,7 +394,7 @@ class AdaptiveSolverFactory:
         can_factor = A.shape[0] <= self.direct_max_dofs
         state = {"solves": 0, "lu": None, "amg": None}
 
-        def solve(b: np.ndarray) -> np.ndarray:
+        def solve(b: np.ndarray, rtol: float | None = None) -> np.ndarray:
             if state["lu"] is None and can_factor and state["solves"] >= self.factor_after:
                 state["lu"] = direct_solver_factory()(A)
                 self.n_factorizations += 1
@@ -376,7 +403,7 @@ class AdaptiveSolverFactory:
                 return state["lu"](b)
             if state["amg"] is None:
                 state["amg"] = self.amg(A)
-            return state["amg"](b)
+            return state["amg"](b, rtol)
 
         return solve
 

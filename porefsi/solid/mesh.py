@@ -17,7 +17,7 @@ from scipy import ndimage
 from porefsi.errors import InputError, MeshError
 from porefsi.image.voxel_image import VoxelImage, axis_index
 
-__all__ = ["SolidMesh", "MeshResult", "mesh_solid", "FACET_TAGS", "FACE_NAMES", "PORE_WALL", "tet_volumes"]
+__all__ = ["SolidMesh", "MeshResult", "mesh_solid", "mesh_size", "FACET_TAGS", "FACE_NAMES", "PORE_WALL", "tet_volumes"]
 
 #: Box faces in the order of their tag codes 0..5.
 FACE_NAMES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
@@ -219,9 +219,9 @@ def _coarsen(solid: np.ndarray, c: int) -> tuple[np.ndarray, list[np.ndarray]]:
         return solid.astype(np.float64), [np.arange(n + 1) for n in solid.shape]
     nb = [-(-n // c) for n in solid.shape]
     lines = [np.minimum(np.arange(m + 1) * c, n) for m, n in zip(nb, solid.shape, strict=True)]
-    counts = solid.astype(np.float64)
-    for ax in range(3):  # block sums along each axis via reduceat
-        counts = np.add.reduceat(counts, lines[ax][:-1], axis=ax)
+    counts = solid
+    for ax in range(3):  # block sums along each axis via reduceat (integer: no float copy of the image)
+        counts = np.add.reduceat(counts, lines[ax][:-1], axis=ax, dtype=np.int64 if ax else np.int32)
     sizes = [np.diff(g) for g in lines]
     nvox = sizes[0][:, None, None] * sizes[1][None, :, None] * sizes[2][None, None, :]
     return counts / nvox, lines
@@ -424,3 +424,22 @@ def mesh_solid(
         solid_fraction_coarse=total / float(cell_vol.sum()),
         n_components_removed=n_removed,
     )
+
+
+def mesh_size(image: VoxelImage, *, coarsen: int = 1, threshold: float = 0.5) -> tuple[int, int]:
+    """``(n_tets, n_nodes)`` of :func:`mesh_solid` of ``image``, counted on the block grid without meshing.
+
+    Floating solid is counted too (:func:`mesh_solid` drops it), so these are upper bounds,
+    reached when every solid block is supported. Costs one integer pass over the image.
+    """
+    c = max(1, int(coarsen))
+    solid = image.phases == 0  # (threshold > 0: a voxel is a block of fraction 0 or 1)
+    if c > 1:
+        solid = _coarsen(solid, c)[0] >= float(threshold)
+    pad = np.pad(solid, 1)
+    corners = np.zeros(tuple(n + 1 for n in solid.shape), bool)  # a corner is used by any of its 8 blocks
+    for a in (0, 1):
+        for b in (0, 1):
+            for c in (0, 1):
+                corners |= pad[a:a + corners.shape[0], b:b + corners.shape[1], c:c + corners.shape[2]]
+    return 5 * int(np.count_nonzero(solid)), int(np.count_nonzero(corners))

@@ -29,13 +29,13 @@ def element_cauchy(model, u: np.ndarray, t: float) -> np.ndarray:
         Time (for the prescribed motion), s.
     """
     full = model.full_displacement(u, t)
-    feb = model.feb
-    if feb.order == 1:
+    if model.order == 1:  # no scikit-fem basis for P1 (it would hold 12 gradient fields per element)
         dN = model.vertex_gradients()
         ue = full.reshape(-1, 3)[model.mesh.tets]  # (Ne, 4, 3)
         H = np.moveaxis(np.matmul(ue.transpose(0, 2, 1), dN), 0, -1)  # H_iJ = sum_a u_ai dN_aJ, (3, 3, Ne)
     else:
         centroid = (np.full((3, 1), 0.25), np.array([1.0 / 6.0]))
+        feb = model.feb
         cb = Basis(feb.basis.mesh, feb.basis.elem, quadrature=centroid)
         H = np.asarray(cb.interpolate(full).grad)[..., 0]
     F = np.eye(3)[:, :, None] + H

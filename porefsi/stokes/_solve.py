@@ -18,6 +18,7 @@ blocks symmetric positive definite (MINRES needs that):
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 
 import numpy as np
@@ -32,6 +33,9 @@ __all__ = ["SolveInfo", "solve", "schur_approximation", "N_VECTORS"]
 #: Full-length vectors :func:`minres` keeps (x, two Lanczos vectors and the new one in place of the
 #: oldest, two preconditioned ones, two search directions).
 N_VECTORS = 7
+
+#: Progress of long solves (size, every 25th iteration): ``logging`` at INFO level.
+log = logging.getLogger(__name__)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -76,7 +80,7 @@ def pressure_preconditioner(system: StaggeredSystem) -> PressureMultigrid:
     return PressureMultigrid(system, schur_approximation(system))
 
 
-def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000, preconditioner=None):
+def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000, preconditioner=None, monitor=None):
     r"""Solve the Stokes system; return ``(u, p, SolveInfo)`` (voxel units).
 
     Parameters
@@ -89,6 +93,10 @@ def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000, p
     preconditioner : PressureMultigrid, optional
         :func:`pressure_preconditioner` of ``system``, when built earlier (before the neighbour
         table, to lower the peak memory).
+    monitor : callable, optional
+        ``monitor(iteration, relative_residual, x)`` every 25th iteration (progress of long solves;
+        ``x`` is the current iterate, velocities then pressures; do not modify it). Default: log the
+        residual at INFO level.
     """
     t0 = time.perf_counter()
     n_u = system.n_u
@@ -103,7 +111,11 @@ def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000, p
         out[n_u:] = prec_s.matvec(v[n_u:])
 
     t1 = time.perf_counter()
-    x, its, ok, hist = minres(tables, n_u, precvec, _rhs(system), rtol=rtol, maxiter=maxiter)
+    log.info("MINRES starts: %d velocity + %d pressure unknowns, ~%.2f GiB", n_u, system.n_p, mem / 2**30)
+    if monitor is None:
+        def monitor(it, res, x):
+            log.info("MINRES iteration %d: relative preconditioned residual %.3e", it, res)
+    x, its, ok, hist = minres(tables, n_u, precvec, _rhs(system), rtol=rtol, maxiter=maxiter, monitor=monitor)
     t2 = time.perf_counter()
     r = np.empty_like(x)
     kern.stokes_matvec(*tables, x, n_u, r)
@@ -118,7 +130,7 @@ def _rhs(system: StaggeredSystem) -> np.ndarray:
     return np.concatenate([system.rhs_u(), np.zeros(system.n_p)])
 
 
-def minres(tables, n_u, precvec, b, *, rtol, maxiter):
+def minres(tables, n_u, precvec, b, *, rtol, maxiter, monitor=None):
     r"""Preconditioned MINRES from x = 0 (Paige & Saunders; the form of Elman, Silvester & Wathen, alg. 4.1).
 
     ``tables`` are the stencil arrays :func:`porefsi.stokes._kernels.stokes_matvec` takes;
@@ -160,6 +172,8 @@ def minres(tables, n_u, precvec, b, *, rtol, maxiter):
         kern.axpy(x, c_new * eta, w)
         eta = -s_new * eta
         hist.append(abs(eta) / gamma0)
+        if monitor is not None and it % 25 == 0:
+            monitor(it, hist[-1], x)
         if hist[-1] < rtol or gamma_new == 0.0:
             return x, it, True, hist
         z, z_new = z_new, z

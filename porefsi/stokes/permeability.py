@@ -31,6 +31,7 @@ box cross-section (pore and solid), both from the image (buffers and mirror copi
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 
 import numpy as np
@@ -39,6 +40,7 @@ from porefsi.errors import ConvergenceError, InputError
 from porefsi.image.voxel_image import AXES, VoxelImage, axis_index
 from porefsi.stokes._domain import flowing_clusters, mirrored, with_buffers
 from porefsi.stokes._grid import StaggeredSystem, assemble, with_neighbours
+from porefsi.stokes._solve import log as _solve_log
 from porefsi.stokes._solve import pressure_preconditioner, solve
 from porefsi.units import MILLIDARCY
 
@@ -229,7 +231,8 @@ def voxel_permeability(image: VoxelImage, axis="x", *, boundary: str = "pressure
     ml = pressure_preconditioner(system)  # before the neighbour table: lower peak memory
     system = with_neighbours(system)
     t_setup = time.perf_counter() - t_start
-    u, p, sinfo = solve(system, rtol=rtol, maxiter=maxiter, preconditioner=ml)
+    u, p, sinfo = solve(system, rtol=rtol, maxiter=maxiter, preconditioner=ml,
+                        monitor=_progress(system, ax, boundary, buffer, n, area_vox, h))
     del ml
     if not sinfo.converged:
         raise ConvergenceError(
@@ -269,6 +272,23 @@ def voxel_permeability(image: VoxelImage, axis="x", *, boundary: str = "pressure
         pf, vf = _fields(system, u, p, image.shape, ax, boundary, buffer, scale, h / viscosity * scale)
         res = dataclasses.replace(res, pressure=pf, velocity=vf)
     return res
+
+
+def _progress(system, ax, boundary, buffer, n, area_vox, h):
+    """A :func:`._solve.solve` monitor that logs the residual and the k (mD) of the current iterate.
+
+    None when INFO logging of :mod:`._solve` is off (no flux is computed then).
+    """
+    if not _solve_log.isEnabledFor(logging.INFO):
+        return None
+
+    def monitor(it, res, x):
+        q = float(plane_fluxes(system, x[:system.n_u], ax).mean())
+        dp_vox = _face_pressure_drop(system, x[system.n_u:], ax, buffer, n) if boundary == "pressure" else float(n)
+        k = q * n / (area_vox * dp_vox) * h * h / MILLIDARCY if dp_vox else float("nan")
+        _solve_log.info("MINRES iteration %d: relative preconditioned residual %.3e, k of the iterate %.2f mD",
+                        it, res, k)
+    return monitor
 
 
 def _layer_mean(system, p, ax, i):

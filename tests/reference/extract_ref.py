@@ -31,8 +31,29 @@ def sq_edt(pore):
     return out
 
 
+def _ball(c, d2, shape=None):
+    """Lattice points x with |x - c|^2 < d2 (inside ``shape`` when given)."""
+    r = math.isqrt(max(d2 - 1, 0))
+    pts = []
+    for off in product(range(-r, r + 1), repeat=3):
+        if sum(o * o for o in off) < d2:
+            x = tuple(a + o for a, o in zip(c, off, strict=True))
+            if shape is None or all(0 <= x[a] < shape[a] for a in range(3)):
+                pts.append(x)
+    return pts
+
+
+def ball_reach(offset, d2):
+    """Largest squared distance from ``offset`` to a lattice point of the ball |y|^2 < d2 (brute force)."""
+    return max(sum((y[a] - offset[a]) ** 2 for a in range(3)) for y in _ball((0, 0, 0), d2))
+
+
 def maximal_balls(dt2, min_dt2, half_width=1):
-    """Maximal-ball centres (radius descending, linear index ascending) and candidate count."""
+    """Maximal-ball centres (radius descending, linear index ascending) and candidate count.
+
+    A candidate is dropped when its whole digital ball (lattice points, not clipped to the image)
+    lies inside the digital ball of a neighbour within ``half_width``, checked point by point.
+    """
     shape = dt2.shape
     found = []
     ncand = 0
@@ -41,13 +62,14 @@ def maximal_balls(dt2, min_dt2, half_width=1):
         if dp < min_dt2:
             continue
         ncand += 1
+        ball = _ball(ijk, dp)
         contained = False
         for off in product(range(-half_width, half_width + 1), repeat=3):
             q = tuple(a + o for a, o in zip(ijk, off, strict=True))
             if off == (0, 0, 0) or not all(0 <= q[a] < shape[a] for a in range(3)):
                 continue
             dq = int(dt2[q])
-            if dq > dp and math.sqrt(dq) >= math.sqrt(dp) + math.sqrt(sum(o * o for o in off)) - 1e-9:
+            if all(sum((x[a] - q[a]) ** 2 for a in range(3)) < dq for x in ball):
                 contained = True
         if not contained:
             found.append((-dp, int(np.ravel_multi_index(ijk, shape))))
@@ -55,16 +77,23 @@ def maximal_balls(dt2, min_dt2, half_width=1):
     return np.array([f[1] for f in found], dtype=np.int64), ncand
 
 
-def families(dt2, balls, extent, ratio):
+def families(dt2, balls, extent, ratio, core=0.0):
     """Ball hierarchy and painted labels (see ``_kernels._families``)."""
     shape = dt2.shape
     labels = -np.ones(shape, np.int64)
+    in_core = np.zeros(shape, bool)
     centres = [np.unravel_index(int(b), shape) for b in balls]
     radius = [math.sqrt(dt2[c]) for c in centres]
     master = []
     for k, c in enumerate(centres):
+        if in_core[c]:  # skipped: joins the family of the ball owning its centre
+            master.append(master[int(labels[c])])
+            continue
         d2 = int(dt2[c])
-        ball = [v for v in product(*[range(s) for s in shape]) if sum((v[a] - c[a]) ** 2 for a in range(3)) < d2]
+        ball = _ball(c, d2, shape)
+        for v in ball:
+            if sum((v[a] - c[a]) ** 2 for a in range(3)) < core * core * d2:
+                in_core[v] = True
         owners = sorted({int(labels[v]) for v in ball if labels[v] >= 0})
         chosen = None
         for o in owners:  # ascending visit order = descending radius

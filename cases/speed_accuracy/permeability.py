@@ -1,0 +1,319 @@
+"""Case ``speed_accuracy``, permeability part: what each second buys against the rock (issue 12).
+
+The coupled-run study (``run.py``) measures porefsi against a finer porefsi run. This part puts the
+rock on the chart: the single-phase permeability of Berea images by
+
+- the pore network (``porefsi.network.extract_network`` once per image, then
+  ``porefsi.flow.absolute_permeability`` along x, y and z) with each conduit model,
+  ``"shape_factor"`` (the default) and ``"paper"``;
+- the voxel Stokes solver (``porefsi.stokes.voxel_permeability``) on the image coarsened 1, 2, 3,
+  4 times (``porefsi.image.downsample``);
+
+each against its CPU time (``time.process_time`` of this process, BLAS and numba on one thread,
+numba compiled beforehand; network: one extraction plus three solves; voxel: coarsening plus
+three solves). k is the mean over the three axes.
+
+The truth each point is measured against, named in ``results.json`` (``truth_kind``):
+
+- ``"published DNS"``: the whole 400^3 Berea (``--image``), against the published voxel-scale
+  simulation, mean 1286 mD (kx, ky, kz = 1360, 1304, 1193; which array axis is the published x is
+  uncertain, so only the mean is compared). This is accuracy.
+- ``"finest voxel solve"``: the built-in 120^3 sample and the 200^3 centre crop of the 400^3
+  Berea have no published value: their points are measured against porefsi's own voxel solve
+  at full resolution. This checks convergence (and the network against the voxel solver), not
+  accuracy against the rock.
+
+The full-resolution 400^3 solve takes ~6 GiB and about an hour of CPU per axis: it is read from
+``reference/berea400_voxel.json`` (written from ``benchmarks/bench_stokes.py --cases full``, with
+its commit and date) unless ``--full-resolution`` runs it here.
+
+Outputs: ``figures/permeability_speed_accuracy.png`` and the ``"permeability"`` entry of
+``results.json`` (the coupled study's entries are kept).
+
+Usage: ``python cases/speed_accuracy/permeability.py [--smoke] [--out DIR] [--image BEREA400.npz]
+[--images sample crop200 berea400] [--full-resolution]``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")  # before numpy/numba load: single-thread CPU time is comparable
+
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from porefsi import PorefsiError  # noqa: E402
+from porefsi.flow import absolute_permeability  # noqa: E402
+from porefsi.image import VoxelImage, downsample, load_sample  # noqa: E402
+from porefsi.network import extract_network  # noqa: E402
+from porefsi.stokes import voxel_permeability  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
+from _common import git_head, loadavg, output_dir, parse_args, pyplot, write_results  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+FULL_FILE = HERE / "reference" / "berea400_voxel.json"
+REPO = HERE.parents[1]
+BEREA400 = [REPO.parent / "shared" / "data" / "berea_icl_400.npz",
+            REPO.parent.parent / "shared" / "data" / "berea_icl_400.npz"]
+#: Published voxel-scale simulation of the 400^3 Berea, mD (axis mapping uncertain: compare means).
+DNS_MD = {"x": 1360.0, "y": 1304.0, "z": 1193.0}
+DNS_MEAN_MD = float(np.mean(list(DNS_MD.values())))
+MODELS = ("shape_factor", "paper")
+AXES3 = ("x", "y", "z")
+
+
+# ---------------------------------------------------------------------------------------------
+# the study design
+# ---------------------------------------------------------------------------------------------
+def images(smoke: bool, which, berea400: Path | None):
+    """``(name, VoxelImage, truth_kind, coarsenings)`` of the images studied.
+
+    Smoke: a 32^3 corner of the built-in sample at coarsening 1 and 2 (seconds).
+    """
+    if smoke:
+        s = load_sample()
+        yield "sample32", VoxelImage(s.phases[:32, :32, :32].copy(), s.voxel_size), "finest voxel solve", (1, 2)
+        return
+    if "sample" in which:
+        yield "sample120", load_sample(), "finest voxel solve", (1, 2, 3, 4)
+    if berea400 is None and {"crop200", "berea400"} & set(which):
+        print("400^3 Berea not found (--image): skipping crop200 and berea400", flush=True)
+        return
+    if {"crop200", "berea400"} & set(which):
+        with np.load(berea400) as d:
+            big = VoxelImage(d["image"].astype(bool), float(d["voxel_size_m"]))
+        if "crop200" in which:
+            yield "crop200", VoxelImage(big.phases[100:300, 100:300, 100:300].copy(), big.voxel_size), \
+                "finest voxel solve", (1, 2, 3, 4)
+        if "berea400" in which:
+            yield "berea400", big, "published DNS", (1, 2, 3, 4)
+
+
+def voxel_point(image: VoxelImage, factor: int) -> dict:
+    """Voxel-solver permeability of ``image`` coarsened ``factor`` times, x, y, z, with its CPU time."""
+    c0, t0 = time.process_time(), time.perf_counter()
+    work = downsample(image, factor) if factor > 1 else image
+    k, its, conv = {}, {}, True
+    for ax in AXES3:
+        r = voxel_permeability(work, ax)
+        k[ax], its[ax], conv = r.k_mD, r.iterations, conv and r.converged
+    return {"method": "voxel", "model": None, "coarsen": factor, "voxel_size_m": work.voxel_size,
+            "shape": list(work.shape), "k_mD": k, "iterations": its, "converged": conv,
+            "cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - t0}
+
+
+def network_points(image: VoxelImage) -> list[dict]:
+    """Network permeability of ``image`` by each conduit model (one extraction), x, y, z, with CPU time.
+
+    The extraction is on the whole image: clusters that do not span an axis carry no flow in
+    ``absolute_permeability`` (they are left out of its solve). Each model's CPU time is the
+    extraction's plus its own three solves.
+    """
+    c0, t0 = time.process_time(), time.perf_counter()
+    ext = extract_network(image)
+    c_ext, t_ext = time.process_time() - c0, time.perf_counter() - t0
+    rows = []
+    for model in MODELS:
+        c1, t1 = time.process_time(), time.perf_counter()
+        net = ext.network.with_conductance(model)
+        k = {ax: absolute_permeability(net, ax).k_mD for ax in AXES3}
+        rows.append({"method": "network", "model": model, "coarsen": 1, "voxel_size_m": image.voxel_size,
+                     "shape": list(image.shape), "k_mD": k, "n_pores": int(net.n_pores),
+                     "cpu_s": c_ext + time.process_time() - c1, "wall_s": t_ext + time.perf_counter() - t1,
+                     "cpu_extract_s": c_ext})
+    return rows
+
+
+def cached_full_resolution(path: Path = FULL_FILE) -> dict | None:
+    """The full-resolution 400^3 voxel point from ``reference/berea400_voxel.json``, or None."""
+    if not path.is_file():
+        return None
+    d = json.loads(path.read_text())
+    if set(d.get("k_mD", {})) != set(AXES3):
+        print(f"{path}: not all three axes solved ({sorted(d.get('k_mD', {}))}): full resolution left out",
+              flush=True)
+        return None
+    return {"method": "voxel", "model": None, "coarsen": 1, **{k: d[k] for k in (
+        "voxel_size_m", "shape", "k_mD", "iterations", "converged", "cpu_s", "wall_s")},
+        "cached": {k: d.get(k) for k in ("source", "commit", "date_utc", "load")}}
+
+
+# ---------------------------------------------------------------------------------------------
+# errors, chart
+# ---------------------------------------------------------------------------------------------
+def score(rows: list[dict], truth_kind: str) -> float | None:
+    """Add the three-axis mean and the error against the truth to every row of one image; return the truth (mD)."""
+    for r in rows:
+        r["k_mean_mD"] = float(np.mean([r["k_mD"][ax] for ax in AXES3]))
+    if truth_kind == "published DNS":
+        truth = DNS_MEAN_MD
+    else:
+        finest = [r for r in rows if r["method"] == "voxel" and r["coarsen"] == 1]
+        truth = finest[0]["k_mean_mD"] if finest else None
+    for r in rows:
+        r["truth_kind"], r["truth_mD"] = truth_kind, truth
+        r["error"] = None if truth is None else r["k_mean_mD"] / truth - 1.0
+        r["is_truth"] = truth_kind != "published DNS" and r["method"] == "voxel" and r["coarsen"] == 1
+    return truth
+
+
+def label(r: dict) -> str:
+    """Short name of a point: ``voxel /2`` or ``network shape_factor``."""
+    return f"voxel /{r['coarsen']}" if r["method"] == "voxel" else f"network {r['model']}"
+
+
+def plot(studies: list[dict], path: Path) -> None:
+    """Left: |error| against CPU seconds (log-log); right: the three-axis mean k against CPU seconds
+    with each image's truth as a line. One colour per image, one marker per method."""
+    plt = pyplot()
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(13.0, 5.6))
+    marks = {("voxel", None): "o", ("network", "shape_factor"): "s", ("network", "paper"): "^"}
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red"]
+    floor = 2e-3
+    for st, col in zip(studies, colours, strict=False):
+        for r in st["points"]:
+            mark = "*" if r["is_truth"] else marks[r["method"], r["model"]]
+            txt = "truth" if r["is_truth"] else label(r).replace("network ", "")
+            bx.scatter(r["cpu_s"], r["k_mean_mD"], marker=mark, s=70, color=col, zorder=3)
+            bx.annotate(txt, (r["cpu_s"], r["k_mean_mD"]), fontsize=7, xytext=(4, 3), textcoords="offset points")
+            if r["error"] is None or r["is_truth"]:
+                continue
+            e = max(abs(r["error"]), floor)
+            face = col if r["error"] >= 0 else "white"
+            ax.scatter(r["cpu_s"], e, marker=mark, s=60, color=face, edgecolor=col, zorder=3)
+            ax.annotate(txt, (r["cpu_s"], e), fontsize=7, xytext=(4, 3), textcoords="offset points")
+        vox = sorted((r for r in st["points"] if r["method"] == "voxel" and r["error"] is not None
+                      and not r["is_truth"]), key=lambda r: r["cpu_s"])
+        name = f"{st['image']} ({st['shape'][0]}^3)"
+        ax.plot([r["cpu_s"] for r in vox], [max(abs(r["error"]), floor) for r in vox], color=col, lw=1,
+                label=f"{name}: vs {st['truth_kind']}, {st['truth_mD']:.0f} mD" if st["truth_mD"] else name)
+        if st["truth_mD"]:
+            bx.axhline(st["truth_mD"], color=col, ls=":" if st["truth_kind"] != "published DNS" else "--", lw=1,
+                       label=f"{name}: {st['truth_kind']} {st['truth_mD']:.0f} mD")
+    ax.axhline(0.10, color="grey", ls="--", lw=0.8)
+    ax.text(0.02, 0.105, "10 %", fontsize=7, color="grey", transform=ax.get_yaxis_transform())
+    for a in (ax, bx):
+        a.set_xscale("log")
+        a.set_yscale("log")
+        a.set_xlabel("CPU time, s (three axes; network: one extraction + three solves)")
+        a.grid(True, which="both", alpha=0.3)
+        a.legend(fontsize=7, loc="best")
+    ax.set_ylabel("|k mean / truth - 1|  (filled: above the truth, open: below)")
+    bx.set_ylabel("k, mean of x, y, z (mD)")
+    ax.set_title("error: network (square shape_factor, triangle paper), voxel Stokes (circle, /coarsening)",
+                 fontsize=9)
+    bx.set_title("permeability; dashed: published DNS, dotted: finest voxel solve (a convergence check)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def table(studies: list[dict]) -> str:
+    """Markdown table of every point."""
+    lines = ["| image | method | voxel (µm) | kx | ky | kz | mean (mD) | truth | error | CPU (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for st in studies:
+        for r in st["points"]:
+            k = r["k_mD"]
+            err = "truth" if r["is_truth"] else ("" if r["error"] is None else f"{100 * r['error']:+.0f} %")
+            lines.append(f"| {st['image']} | {label(r)} | {1e6 * r['voxel_size_m']:.2f} | {k['x']:.0f} | "
+                         f"{k['y']:.0f} | {k['z']:.0f} | {r['k_mean_mD']:.0f} | {st['truth_kind']} | {err} | "
+                         f"{r['cpu_s']:.3g} |")
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------
+# main
+# ---------------------------------------------------------------------------------------------
+def _warm_up() -> None:
+    """Compile (or load) the numba kernels on a tiny image, so no point pays for it."""
+    s = load_sample()
+    tiny = VoxelImage(s.phases[:16, :16, :16].copy(), s.voxel_size)
+    voxel_permeability(tiny, "x")
+    try:
+        network_points(tiny)
+    except PorefsiError:
+        pass
+
+
+def _replot(out: Path) -> int:
+    """``--replot``: re-score the saved points (the cached full-resolution 400^3 point refreshed), redraw."""
+    saved = json.loads((out / "results.json").read_text())
+    studies = saved["permeability"]["studies"]
+    for st in studies:
+        if st["image"] == "berea400":
+            st["points"] = [r for r in st["points"] if not (r["method"] == "voxel" and r["coarsen"] == 1)]
+            cached = cached_full_resolution()
+            if cached is not None:
+                st["points"].append(cached)
+        st["truth_mD"] = score(st["points"], st["truth_kind"])
+    write_results(out / "results.json", saved)
+    (out / "permeability_table.md").write_text(table(studies))
+    plot(studies, out / "figures" / "permeability_speed_accuracy.png")
+    return 0
+
+
+def _arguments(p) -> None:
+    p.add_argument("--image", type=Path, default=None, help="the 400^3 Berea npz (default: ../shared/data/)")
+    p.add_argument("--images", nargs="+", default=["sample", "crop200", "berea400"],
+                   choices=["sample", "crop200", "berea400"], help="which images to study")
+    p.add_argument("--replot", action="store_true",
+                   help="no solves: re-read results.json (and reference/berea400_voxel.json for the whole 400^3 "
+                        "at full resolution), re-score, redraw the chart and table")
+    p.add_argument("--full-resolution", action="store_true",
+                   help="solve the whole 400^3 at full resolution here (~6 GiB, hours) instead of reading "
+                        "reference/berea400_voxel.json")
+
+
+def main(argv=None) -> int:
+    """Run the permeability study."""
+    args = parse_args(__doc__, argv, _arguments, smoke_help="seconds-long version (32^3 corner, coarsening 1, 2)")
+    out = output_dir(args, HERE)
+    berea = args.image if args.image is not None else next((p for p in BEREA400 if p.exists()), None)
+    studies = []
+    if args.replot:
+        return _replot(out)
+    _warm_up()
+    for name, img, truth_kind, factors in images(args.smoke, args.images, berea):
+        points = network_points(img)
+        for f in factors:
+            if name == "berea400" and f == 1 and not args.full_resolution:
+                cached = cached_full_resolution()
+                if cached is not None:
+                    points.append(cached)
+                continue
+            points.append(voxel_point(img, f))
+            print(f"{name} voxel /{f}: {points[-1]['k_mD']} mD, {points[-1]['cpu_s']:.1f} s CPU", flush=True)
+        truth = score(points, truth_kind)
+        studies.append({"image": name, "shape": list(img.shape), "voxel_size_m": img.voxel_size,
+                        "porosity": img.porosity, "truth_kind": truth_kind, "truth_mD": truth, "points": points,
+                        "commit": git_head(), "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
+                        "load_after": loadavg()})
+        for r in points:
+            err = "" if r["error"] is None else f"{100 * r['error']:+.1f} %"
+            print(f"{name:>9} {label(r):<22} mean {r['k_mean_mD']:8.1f} mD  {err:>8}  CPU {r['cpu_s']:8.1f} s",
+                  flush=True)
+    res_path = out / "results.json"
+    saved = json.loads(res_path.read_text()) if res_path.is_file() else {"case": "speed_accuracy"}
+    if not args.smoke:  # the images not studied in this run keep their earlier points (each with its commit)
+        done = {st["image"] for st in studies}
+        kept = [st for st in saved.get("permeability", {}).get("studies", []) if st["image"] not in done]
+        order = ["sample120", "crop200", "berea400"]
+        studies = sorted(kept + studies, key=lambda st: order.index(st["image"]) if st["image"] in order else 9)
+    saved["permeability"] = {"smoke": args.smoke, "dns_mD": DNS_MD, "dns_mean_mD": DNS_MEAN_MD, "studies": studies}
+    write_results(res_path, saved)
+    (out / "permeability_table.md").write_text(table(studies))
+    plot(studies, out / "figures" / "permeability_speed_accuracy.png")
+    print(f"outputs in {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
