@@ -96,7 +96,7 @@ def check_refined_memory(shape, n_pore: int, f: int, axis: int, buffer: int, max
     if need <= have:
         return need
     fits = [g for g in range(f - 1, 0, -1) if refined_memory_bytes(shape, n_pore, g, axis, buffer) <= have]
-    hint = f"use refine {fits[0]}" if fits and fits[0] > 1 else "solve without refinement"
+    hint = f"use refine {fits[0]} (--refine {fits[0]})" if fits and fits[0] > 1 else "solve without refinement"
     side = int(max(shape))
     while side > 8 and refined_memory_bytes((side,) * 3, n_pore * side**3 // max(int(np.prod(shape)), 1), f,
                                             axis, buffer) > have:
