@@ -408,3 +408,20 @@ def test_handed_over_image_is_released_after_the_distance_map(monkeypatch):
     got = ex._extract(holder, min_radius=2.0, extent=2.0, merge_ratio=0.9, conductance=None).network
     assert holder == [] and seen == [True]
     assert got.n_pores == want.n_pores and np.allclose(got.throat_radius, want.throat_radius)
+
+
+def test_cli_refuses_before_the_cluster_filter(monkeypatch, capsys):
+    # `porefsi extract` checks the memory right after reading, before the cluster filter (5 bytes
+    # per voxel) runs: a one-line error, not the kernel's OOM killer
+    import porefsi.network.extract as ex
+    from porefsi.cli import main
+
+    monkeypatch.setattr(ex, "available_memory", lambda: 1000)
+    calls = []
+    import porefsi.image.ops as ops
+
+    monkeypatch.setattr(ops, "percolating_cluster", lambda *a, **k: calls.append(1))
+    assert main(["extract"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "needs about" in err[0] and "available" in err[0]
+    assert calls == []

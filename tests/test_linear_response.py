@@ -269,3 +269,15 @@ def test_auto_falls_back_before_the_error_can_pass_the_tolerance(two_pores):
         auto = make_stepper(model, response="auto", response_tol=tol, interface=itf)
         auto.step(u0, u0, 0.0, 1.0, _forces(itf, P2, 1.0), {1.0: P2}, itf)
         assert (auto.fallen is not None) == falls, tol / est
+
+
+def test_stepper_with_a_moving_face_through_the_unit_responses(two_pores):
+    """The unit-response path adds the prescribed motion at the step's end time (``a + t b``)."""
+    mesh, itf = two_pores
+    model = _model(mesh, 20e9, rate=-1e-7 * N * H)
+    st = make_stepper(model, response="auto", interface=itf, n_steps=1000)
+    u = v = np.zeros(model.n_dofs)
+    for k in range(2):
+        u, v = st.step(u, v, float(k), 1.0, _forces(itf, P2, k + 1.0), {k + 1.0: P2}, itf)
+    assert st.path == "linear (unit responses)"
+    assert _rel(u, _nonlinear(model, itf, P2, 2.0)) < 1e-6

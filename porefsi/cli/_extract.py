@@ -135,7 +135,7 @@ def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
 
 def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
     from porefsi.image.ops import percolating_cluster
-    from porefsi.network.extract import _extract
+    from porefsi.network.extract import _extract, check_memory
 
     t0 = time.perf_counter()
     image = image_from_args(args, source)
@@ -146,6 +146,8 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
             f"image {source or _SAMPLE} has no pore voxels (all solid); porefsi reads 1 as pore: "
             "check --invert, --threshold or --pore-value"
         )
+    # before the cluster filter (5 bytes/voxel) and the extraction (about 7): refuse what cannot fit
+    check_memory(image.shape, int(round(porosity * image.phases.size)))
     removed = 0.0
     shape = list(image.shape)
     work = image

@@ -27,6 +27,8 @@ __all__ = ["StaticStepper", "TDGStepper", "make_solid_stepper"]
 
 #: Loosest relative tolerance of an iterative linear solve inside the static modified Newton.
 LINEAR_RTOL_MAX = 0.1
+#: The model's linear solvers that are iterative (the static stepper warm-starts them).
+ITERATIVE = ("amg", "jacobi")
 
 
 class _Stepper:
@@ -61,6 +63,8 @@ class StaticStepper(_Stepper):
         self.rtol, self.max_iter = rtol, max_iter
         self._lu = None
         self._lu_at: tuple[np.ndarray, float] | None = None  # (u, t) of the factorised tangent
+        self._K = None  # the tangent of ``_lu`` (for the warm start of an iterative solve)
+        self._guess: np.ndarray | None = None  # the previous step's first Newton increment
 
     def load_times(self, t0: float, dt: float) -> tuple[float, ...]:
         """The solid needs the fluid load at the end of the step only."""
@@ -81,7 +85,7 @@ class StaticStepper(_Stepper):
         """Modified Newton with the stored factorisation; None when it stops contracting."""
         x = u.copy()
         prev = np.inf
-        for _ in range(self.max_iter):
+        for it in range(self.max_iter):
             r = model.internal_force(x, t) - fext
             nr = float(np.linalg.norm(r))
             if nr <= self.rtol * scale:
@@ -91,8 +95,35 @@ class StaticStepper(_Stepper):
             prev = nr
             # an iterative solve need only reach half the Newton target (an inexact Newton step):
             # one AMG-CG solve per step instead of a second one polishing a converged residual
-            x = x - self._lu(r, rtol=min(LINEAR_RTOL_MAX, 0.5 * self.rtol * scale / nr))
+            eta = min(LINEAR_RTOL_MAX, 0.5 * self.rtol * scale / nr)
+            dx = self._increment(r, nr, eta) if it == 0 else self._lu(r, rtol=eta)
+            if it == 0:
+                self._guess = dx
+            x = x - dx
         return None
+
+    def _increment(self, r: np.ndarray, nr: float, eta: float) -> np.ndarray:
+        """``K^-1 r`` to relative residual ``eta``; an iterative solve starts from the last step's increment.
+
+        Loads grow step by step in nearly the same pattern (a constant-rate injection: the
+        first residuals of successive steps of a 120³ crop agree to 5e-3, then 5e-9, after
+        scaling), so the Ritz multiple ``a p`` of the previous increment ``p`` leaves a remainder
+        ``r - a K p`` that the solve reduces only to ``eta |r|``: a few CG iterations instead of
+        ~15. Exact solves (LU) are used as they are.
+        """
+        p, K = self._guess, self._K
+        if p is None or K is None or self.model.linear_solver not in ITERATIVE:
+            return self._lu(r, rtol=eta)
+        Kp = K @ p
+        pKp = float(p @ Kp)
+        if not pKp > 0:
+            return self._lu(r, rtol=eta)
+        a = float(p @ r) / pKp
+        rest = r - a * Kp
+        n_rest = float(np.linalg.norm(rest))
+        if n_rest <= eta * nr:
+            return a * p
+        return a * p + self._lu(rest, rtol=min(LINEAR_RTOL_MAX, eta * nr / n_rest))
 
     def _solve(self, model: SolidModel, t: float, u0: np.ndarray, t_prev: float) -> np.ndarray:
         """Equilibrium at ``t``: the stored tangent, then a fresh one, then full Newton from ``(u0, t_prev)``."""
@@ -104,7 +135,8 @@ class StaticStepper(_Stepper):
             if refresh or (self._lu is None and self._lu_at is None):
                 self._lu, self._lu_at = None, (u.copy(), t)
             if self._lu is None:  # built here, or rebuilt from a checkpoint's (u, t)
-                self._lu = self._make_solver(model.tangent(*self._lu_at))
+                self._K = model.tangent(*self._lu_at)
+                self._lu = self._make_solver(self._K)
             x = self._newton(model, t, u, fext, scale)
             if x is not None:
                 return x
@@ -112,19 +144,23 @@ class StaticStepper(_Stepper):
             u1, _ = solve_static(model, t, u0=u, t_prev=t_prev, rtol=self.rtol)
         except SOLVER_FAILURES as exc:
             raise solver_failure(exc, t) from exc
-        self._lu = self._lu_at = None
+        self._lu = self._lu_at = self._K = None
         return u1
 
     def state(self) -> tuple[dict, dict]:
-        """(arrays, metadata) of where the reused tangent was factorised (empty without one)."""
+        """(arrays, metadata) of where the reused tangent was factorised and the warm start (empty without one)."""
+        warm = self._guess is not None and self.model.linear_solver in ITERATIVE
+        arrays = {"static_guess": self._guess} if warm else {}
         if self._lu_at is None:
-            return {}, {}
-        return {"static_lu_u": self._lu_at[0]}, {"static_lu_t": self._lu_at[1]}
+            return arrays, {}
+        return arrays | {"static_lu_u": self._lu_at[0]}, {"static_lu_t": self._lu_at[1]}
 
     def restore(self, arrays: dict, meta: dict) -> None:
-        """Factorise the next tangent where the checkpointed run's was (:meth:`state`)."""
+        """Factorise the next tangent where the checkpointed run's was, warm-start as it would (:meth:`state`)."""
         if "static_lu_u" in arrays:
             self._lu_at = (np.array(arrays["static_lu_u"], dtype=float), float(meta["static_lu_t"]))
+        if "static_guess" in arrays:
+            self._guess = np.array(arrays["static_guess"], dtype=float)
 
 
 class _TangentLog:

@@ -24,6 +24,8 @@ _EXPORTS = {
     "SyntheticBundle": "porefsi.image.synthetic",
     "sphere_lattice": "porefsi.image.synthetic",
     "cylinder_bundle": "porefsi.image.synthetic",
+    "available_memory": "porefsi.image._memory",
+    "format_bytes": "porefsi.image._memory",
 }
 
 __all__ = [
@@ -47,6 +49,8 @@ __all__ = [
     "SyntheticBundle",
     "sphere_lattice",
     "cylinder_bundle",
+    "available_memory",
+    "format_bytes",
 ]
 
 __getattr__, __dir__ = exports(__name__, _EXPORTS)

@@ -40,7 +40,9 @@ from porefsi.network._mb_conduits import (
 )
 from porefsi.network.network import CONDUCTANCE_MODELS, Network
 
-__all__ = ["Extraction", "ExtractionInfo", "extract_network", "memory_needed", "digital_radius", "MIN_SEGMENT"]
+__all__ = [
+    "Extraction", "ExtractionInfo", "extract_network", "memory_needed", "check_memory", "digital_radius", "MIN_SEGMENT",
+]
 
 #: Largest uint16 squared distance kept (module constant so a test can force the int32 path).
 _DT2_CAP16 = int(kern.CAP16)
@@ -165,7 +167,12 @@ def memory_needed(shape, n_pore: int) -> int:
     return n_vox * 6 + int(n_pore) * index
 
 
-def _check_memory(shape, n_pore: int) -> None:
+def check_memory(shape, n_pore: int) -> None:
+    """Raise a one-line :class:`InputError` if :func:`memory_needed` exceeds the available memory.
+
+    Also honours the address-space limit (``ulimit -v``). The CLI calls it before filtering the
+    image (whose cluster labelling needs 5 bytes per voxel, less than the extraction).
+    """
     need = memory_needed(shape, n_pore)
     avail = available_memory()
     if avail is not None and need > avail:
@@ -295,7 +302,7 @@ def _extract(holder: list, *, min_radius, extent, merge_ratio, conductance) -> E
     n_pore = _check(image, min_radius, extent, merge_ratio)
     if conductance is not None and conductance not in CONDUCTANCE_MODELS:
         raise InputError(f"unknown conductance model {conductance!r}; use one of {CONDUCTANCE_MODELS}")
-    _check_memory(image.shape, n_pore)
+    check_memory(image.shape, n_pore)
     shape, vs, origin = image.shape, image.voxel_size, image.origin.copy()
     laps = _Laps()
     dt2 = _distance_map(image.phases)
