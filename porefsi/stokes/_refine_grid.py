@@ -7,11 +7,9 @@ flow through the image's voxel staircase (docs/stokes.md, "Solution verification
 
 from __future__ import annotations
 
-import os
-import resource
-
 import numpy as np
 
+from porefsi._memory import available_memory, format_bytes
 from porefsi.errors import InputError
 
 __all__ = ["upsample_mask", "refined_memory_bytes", "available_memory_bytes", "check_refined_memory",
@@ -22,8 +20,6 @@ __all__ = ["upsample_mask", "refined_memory_bytes", "available_memory_bytes", "c
 BYTES_PER_PORE_VOXEL = 600
 #: Per voxel of the solved box (pore and solid, buffers included): masks, labels, index tables.
 BYTES_PER_BOX_VOXEL = 24
-#: Interpreter, numpy, scipy, numba and pyamg.
-BASE_BYTES = 300 * 2**20
 
 
 def check_refine(refine) -> int:
@@ -43,7 +39,7 @@ def upsample_mask(mask: np.ndarray, f: int) -> np.ndarray:
 
 
 def refined_memory_bytes(shape, n_pore: int, f: int, axis: int, buffer: int) -> int:
-    """Estimated peak memory (bytes) of a voxel Stokes solve of an image refined ``f`` times.
+    """Estimated memory (bytes) a voxel Stokes solve of an image refined ``f`` times allocates.
 
     Parameters
     ----------
@@ -61,29 +57,17 @@ def refined_memory_bytes(shape, n_pore: int, f: int, axis: int, buffer: int) -> 
     box = int(np.prod(shape, dtype=np.int64))
     slab = box // shape[axis] * 2 * buffer  # all-fluid buffer voxels
     f3 = f**3
-    return int(BASE_BYTES + f3 * (BYTES_PER_BOX_VOXEL * (box + slab) + BYTES_PER_PORE_VOXEL * (n_pore + slab)))
+    return int(f3 * (BYTES_PER_BOX_VOXEL * (box + slab) + BYTES_PER_PORE_VOXEL * (n_pore + slab)))
 
 
 def available_memory_bytes() -> int:
-    """Memory this process may still use: the smaller of the address-space limit and MemAvailable."""
-    limits = []
-    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
-    if soft not in (resource.RLIM_INFINITY, -1):
-        limits.append(int(soft))
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    limits.append(int(line.split()[1]) * 1024)
-                    break
-    except OSError:
-        pass
-    if not limits:
-        try:
-            limits.append(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
-        except (ValueError, OSError, AttributeError):
-            return 2**62
-    return min(limits)
+    """Bytes a new allocation may take, 2**62 if unknown.
+
+    :func:`porefsi._memory.available_memory`: MemAvailable, lowered to the room the address-space
+    limit leaves.
+    """
+    avail = available_memory()
+    return 2**62 if avail is None else int(avail)
 
 
 def check_refined_memory(shape, n_pore: int, f: int, axis: int, buffer: int, max_memory=None) -> int:
@@ -102,6 +86,6 @@ def check_refined_memory(shape, n_pore: int, f: int, axis: int, buffer: int, max
                                             axis, buffer) > have:
         side = int(side * 0.8)
     raise InputError(
-        f"refine {f}: the {'x'.join(str(f * s) for s in shape)} grid needs ~{need / 2**30:.1f} GiB, "
-        f"above the {have / 2**30:.1f} GiB available; {hint}, or crop the image to ~{side}^3 voxels"
+        f"refine {f}: the {'x'.join(str(f * s) for s in shape)} grid needs ~{format_bytes(need)}, "
+        f"above the {format_bytes(have)} available; {hint}, or crop the image to ~{side}^3 voxels"
     )
