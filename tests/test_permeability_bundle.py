@@ -56,9 +56,10 @@ def test_conduit_boundary_within_voxel_stokes_bounds_and_centre_biased(length, a
     assert lower <= k <= upper * radius_factor
     # Measured (2 cores, 2026): k / upper = 1.027 (48 voxels), 1.009 (24); k / k_HP(nominal radii) = 1.021.
     assert k / upper == pytest.approx(1.0, abs=0.05)
-    # The centre condition is biased: above the upper bound, by 10 % more than the radius excess accounts for
-    # (measured 1.25x the upper bound = 1.20x upper * radius_factor at 48 voxels; 1.80x = 1.72x at 24).
-    assert k_centre > 1.1 * upper * radius_factor
+    # The centre condition is biased: above the upper bound, by more than the radius excess accounts for
+    # (measured 1.20x upper * radius_factor at 48 voxels, 1.72x at 24, with the extraction of 2026-12-01;
+    # 1.09x at 48 since the hierarchy's core skipping, which places the tubes' pores differently).
+    assert k_centre > 1.05 * upper * radius_factor
 
 
 def test_conduit_k_is_intrinsic_to_the_tubes_not_the_sample_length():
