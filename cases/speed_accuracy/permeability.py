@@ -280,6 +280,7 @@ def main(argv=None) -> int:
     studies = []
     if args.replot:
         return _replot(out)
+    head = git_head()  # the code the points are computed with (HEAD may move during an hour-long run)
     _warm_up()
     for name, img, truth_kind, factors in images(args.smoke, args.images, berea):
         points = network_points(img)
@@ -294,7 +295,7 @@ def main(argv=None) -> int:
         truth = score(points, truth_kind)
         studies.append({"image": name, "shape": list(img.shape), "voxel_size_m": img.voxel_size,
                         "porosity": img.porosity, "truth_kind": truth_kind, "truth_mD": truth, "points": points,
-                        "commit": git_head(), "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
+                        "commit": head, "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
                         "load_after": loadavg()})
         for r in points:
             err = "" if r["error"] is None else f"{100 * r['error']:+.1f} %"
