@@ -41,8 +41,6 @@ LATTICES = {"lat1k": (12, 10, 10), "lat10k": (25, 20, 20), "lat30k": (40, 28, 27
 def _network(name, image, cache):
     if name in LATTICES:
         return lattice_network(LATTICES[name], 4e-5, np.random.default_rng(7))
-    if image is None:
-        raise SystemExit(f"network {name!r} needs --image")
     tile = {"berea": (1, 1, 1), "berea2": (2, 2, 2)}[name]
     path = cache / f"{name}_network.npz"
     from porefsi.network.network import Network
@@ -50,6 +48,8 @@ def _network(name, image, cache):
     if path.exists():
         with np.load(path) as z:
             return Network(**{k: (z[k] if z[k].shape != () else z[k].item()) for k in z.files})
+    if image is None:
+        raise SystemExit(f"network {name!r} needs --image")
     from bench_drainage import _rock_network
 
     net = _rock_network(image, tile)

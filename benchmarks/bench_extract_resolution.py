@@ -23,7 +23,8 @@ Rocks: the built-in 120^3 Berea sample; crops of the 400^3 Berea (``--data``, de
 ``../shared/data`` next to the checkout; skipped when absent), so the upsampled crop (133^3 x 3
 = 399^3) has the 400^3 image's size and its per-voxel cost can be compared at equal size too;
 a Gaussian-blob medium and a sphere pack (the seeded generators of
-``bench_network_accuracy.py``).
+``bench_network_accuracy.py``); ``--rocks blob-scales``: 240^3 blob media whose pores are 1x, 2x,
+3x wider in voxels (the generator's sigma), porefsi only: the radius effect at one image size.
 
 Usage::
 
@@ -156,6 +157,11 @@ def rocks(names, data: Path, crop: int):
         yield "blobs 80^3, porosity 0.30", blobs(n=80, porosity=0.3).astype(np.uint8), 5.345e-6
     if "spheres" in names:
         yield "sphere pack 80^3, porosity 0.35", sphere_pack(n=80, porosity=0.35).astype(np.uint8), 5.345e-6
+    if "blob-scales" in names:
+        # one image size, pore radii x1, x2, x3 in voxels: the radius effect without the size effect
+        for sigma in (4.0, 8.0, 12.0):
+            yield (f"blobs 240^3 sigma {sigma:g} (native, radii x{sigma / 4:g})",
+                   blobs(n=240, porosity=0.3, sigma=sigma).astype(np.uint8), 5.345e-6)
 
 
 def _row(rock, f, tool, r, native):
@@ -203,7 +209,7 @@ def _rock_rows(rock, pore, vs, up, tools, args, tmp: Path, factors) -> list:
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--rocks", nargs="+", default=["sample", "berea", "blobs", "spheres"],
-                   choices=["sample", "berea", "blobs", "spheres"])
+                   choices=["sample", "berea", "blobs", "spheres", "blob-scales"])
     p.add_argument("--factors", nargs="+", type=int, default=[1, 2, 3])
     p.add_argument("--tools", nargs="+", default=list(TOOLS), choices=list(TOOLS))
     p.add_argument("--peer-factors", nargs="+", type=int, default=[1, 3],

@@ -140,10 +140,26 @@ def test_scheme_options_are_validated(net):
     assert not isinstance(DrainageSimulator(net)._engine, AdaptiveEngine)
 
 
-def test_case_key_drainage_scheme():
-    from porefsi.case.config import DrainageConfig
+def test_case_key_drainage_scheme(tmp_path):
+    from porefsi.case.config import Case, DrainageConfig, case_to_toml, load_case
 
     assert DrainageConfig().scheme == "exact"
     assert DrainageConfig(scheme="adaptive").scheme == "adaptive"
     with pytest.raises(ConfigError, match="scheme"):
         DrainageConfig(scheme="quick")
+    path = tmp_path / "case.toml"
+    path.write_text(case_to_toml(Case().replace(drainage={"scheme": "adaptive"})))
+    assert "scheme" in path.read_text() and load_case(path).drainage.scheme == "adaptive"
+    path.write_text(path.read_text().replace('"adaptive"', '"fast"'))
+    with pytest.raises(ConfigError, match="scheme"):
+        load_case(path)
+
+
+def test_case_key_reaches_the_coupled_run():
+    from porefsi.case.config import Case
+    from porefsi.case.problem import problem_from_case
+    from porefsi.coupling.loop import CoupledRun
+
+    case = Case().replace(solid={"coarsen": 10}, drainage={"t_end": 1.0, "scheme": "adaptive"},
+                          interface={"n_test_points": 100})
+    assert isinstance(CoupledRun(problem_from_case(case)).sim._engine, AdaptiveEngine)

@@ -132,3 +132,21 @@ def test_padded_matrix_is_the_free_block_with_the_mean_diagonal_elsewhere():
     cons = np.setdiff1d(np.arange(3 * n_nodes), free)
     ref[cons, cons] = A.diagonal().mean()
     assert np.array_equal(padded.toarray(), ref)
+
+
+def test_resumed_amg_run_repeats_the_uninterrupted_one_bit_for_bit():
+    """The warm start of the static solid's AMG solves is checkpointed: a restored run goes on exactly."""
+    case = Case().replace(image={"crop": [[20, 80], [20, 80], [20, 80]]}, solid={"coarsen": 3, "linear_solver": "amg"},
+                          drainage={"t_end": 3.0}, output={"figures": False, "vtk": False})
+    problem = problem_from_case(case)
+    whole = CoupledRun(problem)
+    for _ in range(3):
+        whole.advance()
+    first = CoupledRun(problem)
+    first.advance()
+    first.advance()
+    arrays, meta = first.checkpoint()
+    assert "static_guess" in arrays
+    resumed = CoupledRun.restore(problem, arrays, meta)
+    resumed.advance()
+    assert np.array_equal(resumed.u, whole.u)

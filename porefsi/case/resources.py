@@ -41,9 +41,9 @@ BASE_BYTES = 0.25 * 2**30
 #: percolating copy (uint8) and the network's voxel-derived arrays.
 HELD_BYTES_PER_VOXEL = 7.0
 #: Checkpoints and snapshots per voxel: a checkpoint write (and a resumed run's restore) holds
-#: copies of the int32 voxel labels next to the run's own (measured: the resumed 400³ run peaked
-#: 0.65 GiB above the uninterrupted one).
-OUTPUT_BYTES_PER_VOXEL = 10.0
+#: copies of the int32 voxel labels next to the run's own (measured: the resumed 400³ run,
+#: writing snapshots, checkpoints and figures, peaked 0.72 GiB above the first two steps').
+OUTPUT_BYTES_PER_VOXEL = 12.0
 #: Transient of the extraction per voxel (distance map, maximal balls, flood queue), measured.
 EXTRACT_BYTES_PER_VOXEL = 10.0
 #: Held per tetrahedron: mesh, P1 assembler (gradients, CSR pattern), tangent, interface, stress.

@@ -44,6 +44,7 @@ import numpy as np
 from porefsi._version import __version__
 from porefsi.case import _outputs as _out
 from porefsi.case import _rundir as _rd
+from porefsi.case._heartbeat import Heartbeat
 from porefsi.case.config import Case, case_to_dict, case_to_toml
 from porefsi.case.problem import problem_from_case
 from porefsi.coupling.loop import CoupledRun
@@ -216,6 +217,23 @@ def run_case(case: Case, out: str | Path | None = None, *, on_record: Callable[[
     else:
         _rd.refuse_existing(out, ctl.overwrite)
         _rd.check_steps(case, ctl.force)
+    sofar_box: list = []  # the run once set up, for the heartbeat's lines
+    beat = Heartbeat(lambda: _doing(sofar_box), enabled=ctl.progress is None and not sys.stderr.isatty())
+    with beat:
+        return _validated_run(case, out, ctl, clock, saved, sofar_box, on_record)
+
+
+def _doing(sofar_box: list) -> str:
+    """What the run is doing, for the heartbeat's line."""
+    run = sofar_box[0].run if sofar_box and sofar_box[0].run is not None else None
+    if run is None:
+        return "step 0, setting up (image, network, mesh, solid, interface)"
+    return f"step {run.step_index + 1}/{run.n_steps}"
+
+
+def _validated_run(case: Case, out: Path, ctl: RunControl, clock: _RunClock, saved, sofar_box: list,
+                   on_record) -> RunOutput:
+    """:func:`run_case` after the run folder and the checkpoint were checked: set up, lock, run."""
     problem = problem_from_case(case)
     _plausible.warn_injection_pressure(problem.network, case.image.axis, case.drainage.rate, case.fluids.mu_n)
     if not case.image.path and case.image.voxel_size is not None:  # a file's is checked when it is read
@@ -237,6 +255,7 @@ def run_case(case: Case, out: str | Path | None = None, *, on_record: Callable[[
             ctl = dataclasses.replace(ctl, figures=case.output.figures)
         if sofar is None:
             sofar = _fresh(problem, out)
+        sofar_box.append(sofar)
         return _execute(case, out, problem, sofar, clock, ctl, on_record)
 
 

@@ -45,6 +45,10 @@ __all__ = ["AdaptiveEngine", "DEFAULT_LOCAL_SOLVES", "DEFAULT_HOPS", "DEFAULT_LO
 #: Relative safety of the certificate against round-off in the bound (as the exact scheme's skip).
 _SAFETY = 1e-9
 
+#: Most steps without a batch attempt after attempts that certified nothing (cost only: an
+#: uncertified step is the exact scheme's event, with its own per-jump skip test).
+_MAX_BACKOFF = 32
+
 #: Defaults of the knobs (see docs/drainage.md, "Adaptive scheme", for the measurements).
 DEFAULT_LOCAL_SOLVES = 8
 DEFAULT_HOPS = 3
@@ -106,6 +110,8 @@ class AdaptiveEngine(Engine):
         self.dn_full = 0  # full pores d_N accounts for (-1: stale, recomputed before the next batch)
         self.n_certified = 0
         self.n_batches = 0
+        self.backoff = 0  # after a batch that certified nothing, this many quiet steps skip the attempt
+        self.backoff_left = 0  # (doubling up to _MAX_BACKOFF; a certified batch resets it)
 
     # -- non-wetting distances ---------------------------------------------------------------
     def _sync_dn(self):
@@ -198,8 +204,15 @@ class AdaptiveEngine(Engine):
         if (self.flux_valid or self.rate is None or not np.isnan(self.t_breakthrough)
                 or self.has_open_path()):
             return Engine.step(self, t_target)
+        if self.backoff_left > 0:  # recent batches certified nothing: do not pay for predicting one
+            self.backoff_left -= 1
+            return Engine.step(self, t_target)
         if self._batch(t_target) == 0:
+            self.backoff = min(2 * self.backoff + 1, _MAX_BACKOFF)
+            self.backoff_left = self.backoff
             Engine.step(self, t_target)  # not certified: the exact jump; the next event solves
+        else:
+            self.backoff = 0
 
     def _front(self):
         """Pinned menisci as a heap of (threshold, edge) (no meniscus is active when this is called)."""
