@@ -19,6 +19,7 @@ from porefsi.image import VoxelImage
 from porefsi.stokes import _refine_grid as rg
 from porefsi.stokes import extrapolated_permeability, richardson, voxel_permeability
 from porefsi.stokes._refine_grid import refined_memory_bytes, upsample_mask
+from porefsi.stokes.refine import ASSUMED_ORDER
 from tests.reference.stokes_ref import (
     disk,
     plates_flow_rate_per_width,
@@ -144,17 +145,20 @@ def test_richardson_recovers_limit_and_order(levels, p):
 
 
 def test_richardson_two_levels_uses_the_assumed_order_and_a_wider_safety_factor():
-    e = richardson([1, 2], [5.0, 2.0])  # 1 + 4 f^-2
-    assert not e.order_observed and e.order == 2.0 and np.isnan(e.observed_order)
-    assert e.value == pytest.approx(1.0) and e.uncertainty == pytest.approx(3.0 * 1.0)
+    e = richardson([1, 2], [5.0, 2.0])
+    r = 2**ASSUMED_ORDER - 1
+    assert not e.order_observed and e.order == ASSUMED_ORDER == 1.5 and np.isnan(e.observed_order)
+    assert e.value == pytest.approx(2.0 - 3.0 / r) and e.uncertainty == pytest.approx(3.0 * 3.0 / r)
+    e2 = richardson([1, 2], [5.0, 2.0], order=2.0)  # 1 + 4 f^-2
+    assert e2.value == pytest.approx(1.0) and e2.uncertainty == pytest.approx(3.0 * 1.0)
     e1 = richardson([2, 3], [5.0, 4.0], order=1.0)  # k = k_inf + C/f: C = 6, k_inf = 2
     assert e1.value == pytest.approx(2.0) and not e1.order_observed
 
 
 def test_richardson_non_monotone_falls_back_to_the_assumed_order():
     e = richardson([1, 2, 3], [10.0, 8.0, 9.0])
-    assert np.isnan(e.observed_order) and not e.order_observed and e.order == 2.0
-    assert e.value == pytest.approx(9.0 + 1.0 / ((3 / 2) ** 2 - 1))
+    assert np.isnan(e.observed_order) and not e.order_observed and e.order == ASSUMED_ORDER
+    assert e.value == pytest.approx(9.0 + 1.0 / ((3 / 2) ** ASSUMED_ORDER - 1))
 
 
 @pytest.mark.parametrize("levels,values", [([1], [1.0]), ([2, 1], [1.0, 2.0]), ([0, 1], [1.0, 2.0]),
