@@ -331,12 +331,6 @@ class AdaptiveEngine(Engine):
         P = np.where(self.trapped, self.P[:n], 0.0)
         P[self.full] = thr
         self.P = np.concatenate([P, [thr]])
-        self.q = np.zeros(n)
-        self.q[x] = self.rate
-        self.q_out_n = 0.0
-        self.q_out_w = self.rate
-        self.flux_valid = True
-        self.p_valid = False
-        self.n_skipped += 1
+        self._skip_solve_single_inflow(x)
         self.n_certified += 1
         self._record(self.inlet_pressure())
