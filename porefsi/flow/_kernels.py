@@ -220,27 +220,7 @@ def _n_distance(indptr, nbr, nbr_res, full, in_res):
     to the inlet through full pores. By Rayleigh's monotonicity law each value bounds the
     effective resistance of the full cluster between the inlet and the pore from above.
     """
-    n = indptr.shape[0] - 1
-    dist = np.full(n, _INF)
-    heap = [(0.0, np.int64(0))]
-    heap.pop()
-    for v in range(n):
-        if full[v] and in_res[v] < _INF:
-            dist[v] = in_res[v]
-            heapq.heappush(heap, (dist[v], np.int64(v)))
-    while len(heap) > 0:
-        dv, v = heapq.heappop(heap)
-        if dv > dist[v]:
-            continue
-        for p in range(indptr[v], indptr[v + 1]):
-            w = nbr[p]
-            if not full[w]:
-                continue
-            nd = dv + nbr_res[p]
-            if nd < dist[w]:
-                dist[w] = nd
-                heapq.heappush(heap, (nd, np.int64(w)))
-    return dist
+    return _dijkstra_to_outlet(indptr, nbr, nbr_res, full, in_res)[0]  # the same search from the inlet side
 
 
 @jit
