@@ -42,7 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from porefsi.coupling._loop_support import SOLVER_FAILURES, solver_failure
-from porefsi.coupling.solid_step import StaticStepper, TDGStepper, make_solid_stepper
+from porefsi.coupling.solid_step import StaticStepper, TDGStepper, _ModelView, make_solid_stepper
 from porefsi.errors import InputError
 from porefsi.integrators.tdg import ALPHA
 from porefsi.solid.model import SMALL_DOFS, SolidModel
@@ -214,7 +214,7 @@ def _operator_key(interface) -> str:
     return _digest(T.indptr, T.indices, T.data, T.shape)
 
 
-class _LinearisedModel:
+class _LinearisedModel(_ModelView):
     """A :class:`SolidModel` seen through its linearisation (for the TDG stepper): ``f_int = f_lin``.
 
     The tangent is always the same ``K0`` object, so the TDG stepper factorises ``M*`` once per
@@ -224,15 +224,6 @@ class _LinearisedModel:
     def __init__(self, model: SolidModel, resp: LinearResponse, solvers: dict):
         self.model, self.resp, self.solvers = model, resp, solvers
 
-    @property
-    def n_dofs(self) -> int:
-        """Free dofs."""
-        return self.model.n_dofs
-
-    def mass(self):
-        """The model's mass."""
-        return self.model.mass()
-
     def internal_force(self, u, t):
         """The linearised internal force, N."""
         return self.resp.linear_force(u, t)
@@ -240,10 +231,6 @@ class _LinearisedModel:
     def tangent(self, u, t):
         """``K0`` (the same object at every call)."""
         return self.resp.K
-
-    def external_force(self, t):
-        """The model's external force, N."""
-        return self.model.external_force(t)
 
     def with_nodal_forces(self, F) -> _LinearisedModel:
         """The same linearisation under nodal forces ``F``."""

@@ -163,7 +163,26 @@ class StaticStepper(_Stepper):
             self._guess = np.array(arrays["static_guess"], dtype=float)
 
 
-class _TangentLog:
+class _ModelView:
+    """A solid model seen by the TDG stepper: delegates dofs, mass and loads to ``self.model``."""
+
+    model: SolidModel
+
+    @property
+    def n_dofs(self) -> int:
+        """Free dofs of the model."""
+        return self.model.n_dofs
+
+    def mass(self):
+        """The model's mass."""
+        return self.model.mass()
+
+    def external_force(self, t):
+        """The model's external force, N."""
+        return self.model.external_force(t)
+
+
+class _TangentLog(_ModelView):
     """The solid model as the TDG stepper sees it, noting where its tangent was evaluated.
 
     ``last`` is the ``(u, t)`` of the latest :meth:`tangent` call (what the stepper factorised);
@@ -176,22 +195,9 @@ class _TangentLog:
         self.last: tuple[np.ndarray, float] | None = None
         self.pin: tuple[np.ndarray, float] | None = None
 
-    @property
-    def n_dofs(self) -> int:
-        """Free dofs of the model."""
-        return self.model.n_dofs
-
-    def mass(self):
-        """The model's mass."""
-        return self.model.mass()
-
     def internal_force(self, u, t):
         """The model's internal force."""
         return self.model.internal_force(u, t)
-
-    def external_force(self, t):
-        """The model's external force."""
-        return self.model.external_force(t)
 
     def tangent(self, u, t):
         """The model's tangent at ``(u, t)`` (or at the pinned state, once)."""
