@@ -44,8 +44,12 @@ the wall is:
     discrete flux equals the exact :math:`N^3 G/12` for every :math:`N` (at :math:`N = 1` the
     single cell has both walls: :math:`2c\,\bar u_0 = G`, the same :math:`c = 6`). Still a diagonal
     term, so :math:`A` stays symmetric positive definite;
-* across with *one* voxel of the neighbour face solid: that face is the face of a solid voxel, so
-  the no-slip point lies exactly on it, a whole voxel away: :math:`u = 0` there, diagonal :math:`+1`.
+* across with *one* voxel of the neighbour face solid (a step of the wall along :math:`d`): that
+  face is the face of a solid voxel, so :math:`u = 0` on it, a whole voxel away. ``"ghost"``:
+  diagonal :math:`+1` (that point value alone). ``"channel"``: :math:`+(1 + c(N))/2`. The side of
+  the face's control volume toward that neighbour is half wall (the half over the solid voxel,
+  shear :math:`c(N)\,u_f` as for a whole wall) and half fluid (the half over the pore voxel, shear
+  :math:`(u_f - 0)/h` toward the closed face); each half weighs 1/2.
 
 On an open box face (pressure boundary) the control volume is the half voxel inside the box:
 tangential terms weigh 1/2 (their walls are those of the image voxel the half volume lies in),

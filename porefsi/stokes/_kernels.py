@@ -179,6 +179,8 @@ def _neighbour(pore, fid, c, d, e, after, periodic, open_axis, wall):
                                                                              open_axis)
     if solid == 2:
         return -1, _wall_term(fid, c, e, periodic[e], wall)
+    if wall == WALL_CHANNEL:  # half the control volume's side is wall, half faces the closed face's u = 0
+        return -1, 0.5 * (POINT_WALL + _wall_term(fid, c, e, periodic[e], wall))
     return -1, POINT_WALL
 
 

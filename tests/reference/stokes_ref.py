@@ -147,7 +147,8 @@ def naive_permeability(pore: np.ndarray, axis: int, *, boundary: str = "pressure
     """k / h^2 of ``pore`` along ``axis`` (voxel units), the model of porefsi.stokes written naively.
 
     ``wall="channel"``: a tangential wall half a voxel away weighs 6N/(3N-2) instead of 2, N the
-    number of velocity unknowns in the straight line through the face along the wall normal.
+    number of velocity unknowns in the straight line through the face along the wall normal; a
+    closed neighbour face with one solid voxel (a step) weighs (1 + 6N/(3N-2)) / 2 instead of 1.
     """
     W = np.moveaxis(np.asarray(pore, dtype=bool), axis, 0)
     lat_per = lateral == "periodic"
@@ -265,7 +266,12 @@ def naive_permeability(pore: np.ndarray, axis: int, *, boundary: str = "pressure
                 lo = list(q)
                 lo[d] -= 1
                 solid = (not voxel(lo)) + (not voxel(q))
-                K[row, row] += w * (parallel_wall(d, c, e) if solid == 2 else 1.0)
+                if solid == 2:
+                    K[row, row] += w * parallel_wall(d, c, e)
+                elif wall == "channel":  # a step: half of that side of the control volume is wall
+                    K[row, row] += w * 0.5 * (1.0 + parallel_wall(d, c, e))
+                else:
+                    K[row, row] += w * 1.0
         lo = list(c)
         lo[d] -= 1
         p_lo, p_hi = pressure(lo), pressure(c)
