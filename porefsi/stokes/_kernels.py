@@ -142,7 +142,7 @@ def face_tables(pore, pid, fid, d, periodic, open_axis, out, wall):
                 half[f] = 1 if boundary else 0
                 dg = 0.0
                 for s in range(6):
-                    g, term = _neighbour(pore, fid, c, d, axes[s // 2], s % 2, periodic, open_axis, wall)
+                    g, term = _neighbour(pore, fid, c, d, axes[s // 2], s % 2, (periodic, open_axis), wall)
                     if want_nb:
                         nb[f, s] = g
                     dg += term * (1.0 if (s < 2 or not boundary) else 0.5)
@@ -154,8 +154,12 @@ def face_tables(pore, pid, fid, d, periodic, open_axis, out, wall):
 
 
 @jit
-def _neighbour(pore, fid, c, d, e, after, periodic, open_axis, wall):
-    """(neighbour face id or -1, unweighted diagonal term) of face ``c`` of axis ``d`` along ``e``."""
+def _neighbour(pore, fid, c, d, e, after, bc, wall):
+    """(neighbour face id or -1, unweighted diagonal term) of face ``c`` of axis ``d`` along ``e``.
+
+    ``after``: the neighbour after (1) or before (0) along ``e``; ``bc`` = (periodic, open_axis).
+    """
+    periodic, open_axis = bc
     q = [c[0], c[1], c[2]]
     q[e] += 1 if after else -1
     lim = fid.shape[e]

@@ -241,6 +241,7 @@ class _Frame:
     length: int  # image layers along the axis
     area: float  # image cross-section, voxels
     h: float  # solved voxel edge, m
+    shape: tuple  # the (refined) image's shape
 
 
 def voxel_permeability(image: VoxelImage, axis="x", options: StokesOptions | None = None,
@@ -293,20 +294,10 @@ def voxel_permeability(image: VoxelImage, axis="x", options: StokesOptions | Non
         raise InputError(f"expected a VoxelImage, got {type(image).__name__}; read one with porefsi.read_image")
     opts = stokes_options(options, **overrides)
     ax = axis_index(axis)
-    f = opts.refine
-    if f > 1:
-        check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), f, ax, opts.buffer_layers,
+    if opts.refine > 1:
+        check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), opts.refine, ax, opts.buffer_layers,
                              opts.max_memory)
-    periodic = [opts.lateral == "periodic"] * 3
-    periodic[ax] = opts.boundary == "periodic"
-    kept, n_clusters = flowing_clusters(image.pore, ax, periodic)
-    connected = float(kept.mean())
-    kept = upsample_mask(kept, f)  # face connectivity is unchanged by the refinement
-    frame = _Frame(ax, opts.boundary, opts.buffer_layers * f, kept.shape[ax], kept.size / kept.shape[ax],
-                   image.voxel_size / f)
-    shape = kept.shape
-    system = _build_system(kept, periodic, frame, opts)
-    del kept
+    system, frame, (connected, n_clusters) = _build_system(image, ax, opts)
     ml = pressure_preconditioner(system)  # before the neighbour table: lower peak memory
     system = with_neighbours(system)
     t_setup = time.perf_counter() - t_start
@@ -315,40 +306,62 @@ def voxel_permeability(image: VoxelImage, axis="x", options: StokesOptions | Non
     del ml
     _check_converged(sinfo, ax, opts)
     q = plane_fluxes(system, u, ax)
-    q_mean = float(q.mean())
     dp_vox = _face_pressure_drop(system, p, frame) if opts.boundary == "pressure" else float(frame.length)
-    k = q_mean * frame.length / (frame.area * dp_vox) * frame.h**2
-    scale = opts.dp / dp_vox  # voxel-unit pressure -> Pa
-    res = StokesResult(
-        k_m2=float(k), k_mD=float(k / MILLIDARCY), axis=AXES[ax],
-        flow_rate=float(q_mean * scale * frame.h**3 / opts.viscosity), dp=float(opts.dp),
-        viscosity=float(opts.viscosity), length=frame.length * frame.h, area=frame.area * frame.h**2,
-        boundary=opts.boundary, iterations=sinfo.iterations, residual=sinfo.residual,
-        flux_spread=float((q.max() - q.min()) / abs(q_mean)) if q_mean else float("inf"),
-        converged=sinfo.converged, seconds=time.perf_counter() - t_start, memory_bytes=int(sinfo.memory_bytes),
-        n_unknowns=system.n_u + system.n_p, porosity=image.porosity, connected_porosity=connected,
-        info={"buffer": opts.buffer_layers, "refine": f, "mirror": bool(opts.mirror), "lateral": opts.lateral,
-              "wall": opts.wall, "n_clusters": n_clusters, "seconds_setup": t_setup + sinfo.seconds_setup,
+    res = _result(opts, frame, (q, dp_vox), sinfo, dict(
+        axis=AXES[ax], n_unknowns=system.n_u + system.n_p, porosity=image.porosity, connected_porosity=connected,
+        info={"buffer": opts.buffer_layers, "refine": opts.refine, "mirror": bool(opts.mirror),
+              "lateral": opts.lateral, "wall": opts.wall, "n_clusters": n_clusters,
+              "seconds_setup": t_setup + sinfo.seconds_setup,
               "seconds_solve": sinfo.seconds_solve, "cpu_seconds": time.process_time() - c_start,
               "history": sinfo.history},
-    )
+        seconds=time.perf_counter() - t_start))
     if opts.fields:
-        pf, vf = _fields(system, (u, p), shape, frame, (scale, frame.h / opts.viscosity * scale))
+        scale = opts.dp / dp_vox  # voxel-unit pressure -> Pa
+        pf, vf = _fields(system, (u, p), frame, (scale, frame.h / opts.viscosity * scale))
         res = dataclasses.replace(res, pressure=pf, velocity=vf)
     return res
 
 
-def _build_system(kept: np.ndarray, periodic, frame: _Frame, opts: StokesOptions) -> StaggeredSystem:
-    """The coupling tables (no neighbour table yet) of the working domain: buffers or mirror copy added."""
-    ax = frame.axis
+def _result(opts: StokesOptions, frame: _Frame, flow, sinfo, rest: dict) -> StokesResult:
+    """The :class:`StokesResult` of plane fluxes and face pressure drop ``flow`` = (q, dp), voxel units."""
+    q, dp_vox = flow
+    q_mean = float(q.mean())
+    k = q_mean * frame.length / (frame.area * dp_vox) * frame.h**2
+    scale = opts.dp / dp_vox  # voxel-unit pressure -> Pa
+    return StokesResult(
+        k_m2=float(k), k_mD=float(k / MILLIDARCY), flow_rate=float(q_mean * scale * frame.h**3 / opts.viscosity),
+        dp=float(opts.dp), viscosity=float(opts.viscosity), length=frame.length * frame.h,
+        area=frame.area * frame.h**2, boundary=opts.boundary, iterations=sinfo.iterations, residual=sinfo.residual,
+        flux_spread=float((q.max() - q.min()) / abs(q_mean)) if q_mean else float("inf"),
+        converged=sinfo.converged, memory_bytes=int(sinfo.memory_bytes), **rest)
+
+
+def _build_system(image: VoxelImage, ax: int, opts: StokesOptions):
+    """The coupling tables (no neighbour table yet) of the working domain, its frame and the clusters kept.
+
+    Returns ``(system, frame, (connected porosity, number of clusters))``; the working domain is the
+    flowing clusters, refined, with buffers or a mirror copy added.
+    """
+    periodic = [opts.lateral == "periodic"] * 3
+    periodic[ax] = opts.boundary == "periodic"
+    kept, n_clusters = flowing_clusters(image.pore, ax, periodic)
+    connected = float(kept.mean())
+    f = opts.refine
+    kept = upsample_mask(kept, f)  # face connectivity is unchanged by the refinement
+    frame = _Frame(ax, opts.boundary, opts.buffer_layers * f, kept.shape[ax], kept.size / kept.shape[ax],
+                   image.voxel_size / f, kept.shape)
     if opts.boundary == "pressure":
         work = with_buffers(kept, ax, frame.buffer)
-        return assemble(work, periodic=periodic, open_axis=ax, pressures=(float(work.shape[ax]), 0.0),
-                        wall=opts.wall, neighbours=False)
-    if not np.any(~kept) and opts.lateral == "periodic":
-        raise InputError("an all-pore periodic box has no wall: the flow is unbounded; add solid")
-    work = mirrored(kept, ax) if opts.mirror else kept
-    return assemble(work, periodic=periodic, body_axis=ax, body_force=1.0, wall=opts.wall, neighbours=False)
+        del kept
+        system = assemble(work, periodic=periodic, open_axis=ax, pressures=(float(work.shape[ax]), 0.0),
+                          wall=opts.wall, neighbours=False)
+    else:
+        if not np.any(~kept) and opts.lateral == "periodic":
+            raise InputError("an all-pore periodic box has no wall: the flow is unbounded; add solid")
+        work = mirrored(kept, ax) if opts.mirror else kept
+        del kept
+        system = assemble(work, periodic=periodic, body_axis=ax, body_force=1.0, wall=opts.wall, neighbours=False)
+    return system, frame, (connected, n_clusters)
 
 
 def _check_converged(sinfo, ax: int, opts: StokesOptions) -> None:
@@ -404,12 +417,12 @@ def _face_pressure_drop(system: StaggeredSystem, p, frame: _Frame) -> float:
     return (a1 + 0.5 * (a1 - a2)) - (b1 + 0.5 * (b1 - b2))
 
 
-def _fields(system, x, shape, frame: _Frame, scales):
+def _fields(system, x, frame: _Frame, scales):
     """Pressure (Pa) and voxel-centred velocity (m/s) on the image's voxels.
 
     ``x`` = (u, p) in voxel units; ``scales`` = (pressure scale, velocity scale) to SI.
     """
-    (u, p), (p_scale, u_scale), ax = x, scales, frame.axis
+    (u, p), (p_scale, u_scale), ax, shape = x, scales, frame.axis, frame.shape
     lo = frame.buffer
     sl = [slice(None)] * 3
     sl[ax] = slice(lo, lo + shape[ax])
