@@ -39,6 +39,7 @@ import scipy.sparse.linalg as spla
 from porefsi.flow import _kernels as kern
 from porefsi.flow._drainage_engine import Engine
 from porefsi.flow._drainage_graph import DrainageGraph
+from porefsi.flow._drainage_options import DEFAULT_HOPS, DEFAULT_LOCAL_MENISCI, DEFAULT_LOCAL_SOLVES
 
 __all__ = ["AdaptiveEngine", "DEFAULT_LOCAL_SOLVES", "DEFAULT_HOPS", "DEFAULT_LOCAL_MENISCI"]
 
@@ -49,10 +50,6 @@ _SAFETY = 1e-9
 #: uncertified step is the exact scheme's event, with its own per-jump skip test).
 _MAX_BACKOFF = 32
 
-#: Defaults of the knobs (see docs/drainage.md, "Adaptive scheme", for the measurements).
-DEFAULT_LOCAL_SOLVES = 8
-DEFAULT_HOPS = 3
-DEFAULT_LOCAL_MENISCI = 8
 
 _RES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
