@@ -77,20 +77,21 @@ class AdaptiveEngine(Engine):
         As for the exact engine: a jump that no batch certified still skips its solve when the
         exact scheme's one-path bound allows (measured: that bound, with the current wetting
         region, certifies more jumps than the batch bound, which must hold for the batch's end).
+    local : (int, int, int)
+        ``(local_solves, hops, local_menisci)``: local solves allowed between two global ones (0:
+        every solve is global), radius in throats of the wetting patches of a local solve, most
+        active menisci for a local solve.
     batch : int
         Most fills predicted (and certified) per batch; cost only, never the outcome.
-    hops : int
-        Radius, in throats, of the wetting patches of a local solve.
-    local_solves : int
-        Local solves allowed between two global ones (0: every solve is global).
     """
 
     def __init__(self, graph: DrainageGraph, rate: float | None, inlet_pressure: float | None,
-                 solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None,
-                 batch: int = 64, hops: int = DEFAULT_HOPS, local_solves: int = DEFAULT_LOCAL_SOLVES,
-                 local_menisci: int = DEFAULT_LOCAL_MENISCI):
+                 solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None, *,
+                 local: tuple[int, int, int] = (DEFAULT_LOCAL_SOLVES, DEFAULT_HOPS, DEFAULT_LOCAL_MENISCI),
+                 batch: int = 64):
         super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=skip_solves,
                          max_active_set_iter=max_active_set_iter)
+        local_solves, hops, local_menisci = local
         self.max_menisci = int(local_menisci)
         self.batch = int(batch)
         self.hops = int(hops)

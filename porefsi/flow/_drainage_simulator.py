@@ -36,12 +36,13 @@ HISTORY_COLUMNS = ("time_s", "injected_m3", "sw", "inlet_pressure_pa", "capillar
 
 
 def _make_engine(graph, rate, inlet_pressure, opts: dict) -> Engine:
-    """The event engine of the scheme named in ``opts`` (checkpoints older than schemes: exact)."""
+    """The event engine of the scheme named in ``opts`` (:meth:`DrainageOptions.engine_options`)."""
     o = dict(opts)
     if o.pop("scheme", "exact") == "adaptive":
         from porefsi.flow._drainage_adaptive import AdaptiveEngine
 
-        return AdaptiveEngine(graph, rate, inlet_pressure, **o)
+        local = (o.pop("local_solves"), o.pop("hops"), o.pop("local_menisci"))
+        return AdaptiveEngine(graph, rate, inlet_pressure, **o, local=local)
     return Engine(graph, rate, inlet_pressure, **o)
 
 
