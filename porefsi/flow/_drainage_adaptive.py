@@ -277,7 +277,7 @@ class AdaptiveEngine(Engine):
                     heapq.heappush(heap, (float(g.pcb[y] if self.inv[ee] else g.thr[ee]), ee))
             seeds = nb[~full[nb] & ~trapped[nb]]
             if seeds.size:
-                kern._trapped_from(seeds, g.indptr, g.nbr, full, trapped, g.is_outlet, g.key, stamp, mark)
+                kern._trapped_from(seeds, (g.indptr, g.nbr, g.is_outlet, g.key), (full, trapped), (stamp, mark))
         if seq:
             full[seq[-1][1]] = True
         return seq, ~full & ~trapped
