@@ -33,16 +33,20 @@ import functools
 import numpy as np
 from scipy import ndimage
 
-from porefsi.errors import InputError
-from porefsi.image.voxel_image import VoxelImage
+from porefsi.errors import InputError, MeshError
+from porefsi.image.voxel_image import VoxelImage, axis_index
 from porefsi.solid.mesh import (
     _TEMPLATES,
+    PORE_WALL,
     MeshResult,
     SolidMesh,
     _boundary_facets,
+    _check_mesh_args,
+    _coarsen,
+    _keep_components,
+    _require_resolved,
     block_points,
     image_box,
-    solid_blocks,
 )
 
 __all__ = ["mesh_graded", "leaf_levels", "balance_levels"]
@@ -54,58 +58,64 @@ _LATTICE = np.array([[a, b, c] for a in range(3) for b in range(3) for c in rang
 _HANGING = np.array([p for p in range(27) if p != _CENTRE and np.count_nonzero(_LATTICE[p] == 1) >= 1])
 
 
-def leaf_levels(mask: np.ndarray, full: np.ndarray, n_levels: int, grading: float) -> np.ndarray:
-    """Octree level of the leaf holding each block before balancing; -1 where there is no solid.
+def leaf_levels(refine: np.ndarray, full: np.ndarray, n_levels: int, grading: float) -> np.ndarray:
+    """Octree level of the leaf holding each block, before balancing.
 
     Parameters
     ----------
-    mask : ndarray of bool, shape (bx, by, bz)
-        Solid blocks.
+    refine : ndarray of bool, shape (bx, by, bz)
+        Blocks to keep fine (those holding loaded pore voxels).
     full : ndarray of bool, shape (bx, by, bz)
         Blocks of full size (not the thinner last block of an axis); only these merge.
     n_levels : int
         Highest level: leaves up to ``2**n_levels`` blocks across.
     grading : float
         A leaf of ``s`` blocks needs every block centre > ``grading * s`` blocks from the nearest
-        non-solid block centre.
+        ``refine`` block centre.
 
     Returns
     -------
     ndarray of int16, shape (bx, by, bz)
         Level L of the leaf (``2**L`` blocks across) containing each block.
     """
-    lev = np.where(mask, 0, -1).astype(np.int16)
-    if mask.all():
-        dist = np.full(mask.shape, np.inf)
-    else:
-        dist = ndimage.distance_transform_edt(mask)
-    mergeable = mask & full
+    lev = np.zeros(refine.shape, np.int16)
+    dist = np.full(refine.shape, np.inf) if not refine.any() else ndimage.distance_transform_edt(~refine)
     for L in range(1, n_levels + 1):
         s = 2**L
-        nc = [n // s for n in mask.shape]
+        nc = [n // s for n in refine.shape]
         if min(nc) == 0:
             break
         crop = tuple(slice(0, m * s) for m in nc)
         shp = (nc[0], s, nc[1], s, nc[2], s)
-        ok = mergeable[crop].reshape(shp).all(axis=(1, 3, 5)) & (dist[crop].reshape(shp).min(axis=(1, 3, 5))
-                                                                  > grading * s)
+        ok = full[crop].reshape(shp).all(axis=(1, 3, 5)) & (dist[crop].reshape(shp).min(axis=(1, 3, 5))
+                                                             > grading * s)
         if not ok.any():
             break
-        up = np.repeat(np.repeat(np.repeat(ok, s, 0), s, 1), s, 2)
-        lev[crop][up] = L
+        lev[crop][_expand(ok, s)] = L
     return lev
+
+
+def _expand(cubes: np.ndarray, s: int) -> np.ndarray:
+    """A per-cube array repeated ``s`` times along each axis (cube grid -> block grid)."""
+    return np.repeat(np.repeat(np.repeat(cubes, s, 0), s, 1), s, 2)
+
+
+def _pool(a: np.ndarray, s: int, reduce) -> tuple[np.ndarray, tuple]:
+    """``reduce`` of ``a`` over the aligned ``s``-cubes inside it, and the crop they cover."""
+    nc = [n // s for n in a.shape]
+    crop = tuple(slice(0, m * s) for m in nc)
+    return reduce(a[crop].reshape(nc[0], s, nc[1], s, nc[2], s), axis=(1, 3, 5)), crop
 
 
 def balance_levels(lev: np.ndarray) -> np.ndarray:
     """Split leaves until no two leaves that touch (face, edge or corner) differ by more than one level.
 
-    ``lev`` as from :func:`leaf_levels`; returns a new array. Leaves are only split, never merged.
+    ``lev`` as from :func:`leaf_levels` (int16); returns a new array. Leaves are only split.
     """
     lev = lev.copy()
     big = np.int16(np.iinfo(np.int16).max - 1)
     while True:
-        m = np.where(lev >= 0, lev, big)
-        allowed = ndimage.minimum_filter(m, size=3, mode="constant", cval=big) + 1
+        allowed = ndimage.minimum_filter(lev, size=3, mode="constant", cval=big) + 1
         viol = lev > allowed
         if not viol.any():
             return lev
@@ -114,12 +124,9 @@ def balance_levels(lev: np.ndarray) -> np.ndarray:
             hit = viol & (lev == L)
             if not hit.any():
                 continue
-            nc = [n // s for n in lev.shape]  # leaves of level L lie inside this crop
-            crop = tuple(slice(0, m * s) for m in nc)
-            cubes = hit[crop].reshape(nc[0], s, nc[1], s, nc[2], s).any(axis=(1, 3, 5))
-            up = np.repeat(np.repeat(np.repeat(cubes, s, 0), s, 1), s, 2)
+            cubes, crop = _pool(hit, s, np.any)  # leaves of level L lie inside this crop
             sub = lev[crop]
-            sub[up & (sub == L)] = L - 1
+            sub[_expand(cubes, s) & (sub == L)] = L - 1
 
 
 def _orient(tets: np.ndarray) -> np.ndarray:
@@ -176,14 +183,18 @@ def _template(bits: int, parity: int) -> np.ndarray:
     return _orient(np.array([(_CENTRE, *t) for t in tris], dtype=np.int64))
 
 
-def _leaf_tets(lev: np.ndarray) -> tuple[np.ndarray, dict]:
-    """Tetrahedra of every leaf as node coordinates in half-block units, shape (Ne, 4, 3); leaf counts per level."""
+def _leaf_tets(lev: np.ndarray, solid: np.ndarray) -> tuple[np.ndarray, dict]:
+    """Tetrahedra of the solid leaves as node coordinates in half-block units, shape (Ne, 4, 3).
+
+    ``lev``: balanced levels; ``solid``: block mask, constant over each leaf. Also returns the
+    number of solid leaves per level.
+    """
     shape = np.asarray(lev.shape)
     isnode = np.zeros(tuple(shape + 1), bool)
     leaves = {}
     for L in range(int(lev.max()) + 1):
         s = 2**L
-        o = np.argwhere(lev == L)
+        o = np.argwhere((lev == L) & solid)
         o = o[np.all(o % s == 0, axis=1)]
         leaves[L] = o
         for c in _LATTICE[[0, 2, 6, 8, 18, 20, 24, 26]] // 2:
@@ -209,31 +220,68 @@ def _leaf_tets(lev: np.ndarray) -> tuple[np.ndarray, dict]:
     return np.concatenate(out), {L: len(o) for L, o in leaves.items()}
 
 
+def _leaf_solid(fine: np.ndarray, lines, lev: np.ndarray, threshold: float) -> np.ndarray:
+    """Block mask of solid leaves: a leaf is solid when its solid voxel fraction is >= ``threshold``."""
+    counts = fine
+    for ax in range(3):
+        counts = np.add.reduceat(counts, lines[ax][:-1], axis=ax, dtype=np.int64)
+    sizes = [np.diff(g) for g in lines]
+    nvox = sizes[0][:, None, None] * sizes[1][None, :, None] * sizes[2][None, None, :]
+    out = counts >= threshold * nvox
+    for L in range(1, int(lev.max()) + 1):
+        s = 2**L
+        (c_sum, crop), (n_sum, _) = _pool(counts, s, np.sum), _pool(nvox, s, np.sum)
+        here = lev[crop] == L
+        out[crop][here] = _expand(c_sum >= threshold * n_sum, s)[here]
+    return out
+
+
+def _check_graded_args(image, coarsen_max, grading, refine) -> np.ndarray:
+    """The refine mask (voxels) of :func:`mesh_graded`, after checking its own arguments."""
+    if isinstance(coarsen_max, bool) or not isinstance(coarsen_max, (int, np.integer)) or coarsen_max < 1:
+        raise InputError(f"coarsen_max must be an integer >= 1 (voxels), got {coarsen_max!r}")
+    if not (isinstance(grading, (int, float, np.floating, np.integer)) and np.isfinite(grading) and grading > 0):
+        raise InputError(f"grading must be a finite number > 0, got {grading!r}; 1 is the usual choice")
+    if refine is None:
+        return image.phases != 0
+    refine = np.asarray(refine)
+    if refine.shape != image.phases.shape or refine.dtype != bool:
+        raise InputError(f"refine must be a boolean array of the image's shape {image.phases.shape}, got "
+                         f"{refine.dtype} {refine.shape}")
+    return refine
+
+
 def mesh_graded(
     image: VoxelImage,
     *,
     coarsen: int = 2,
     coarsen_max: int = 16,
     grading: float = 1.0,
+    refine: np.ndarray | None = None,
     threshold: float = 0.5,
     keep: str = "supported",
     support_axis: str | int | None = "z",
 ) -> MeshResult:
-    """Mesh the solid of ``image`` with blocks of ``coarsen`` voxels at the pore walls, coarser inside.
+    """Mesh the solid of ``image`` with blocks of ``coarsen`` voxels near ``refine``, coarser away from it.
 
     Parameters
     ----------
     image : VoxelImage
         Segmented image (1 = pore, 0 = solid).
     coarsen : int, default 2
-        Fine block size c_f (voxels) at the pore walls: the walls are those of
+        Fine block size c_f (voxels) near ``refine``: there the solid is that of
         ``mesh_solid(image, coarsen=coarsen)``.
     coarsen_max : int, default 16
         Largest leaf edge, voxels: leaves are ``coarsen * 2**L`` voxels across for ``L`` up to
         ``floor(log2(coarsen_max / coarsen))`` (``coarsen_max <= coarsen``: the uniform mesh).
     grading : float, default 1.0
-        Distance to the nearest pore block per leaf size (> 0): a leaf of edge ``s`` blocks lies
-        more than ``grading * s`` blocks from the walls. Smaller: coarser sooner, fewer nodes.
+        Distance from ``refine`` per leaf size (> 0): a leaf of edge ``s`` blocks lies more than
+        ``grading * s`` blocks (centre to centre) from every block holding a ``refine`` voxel.
+        Smaller: coarser sooner, fewer nodes.
+    refine : ndarray of bool, shape of the image, optional
+        Voxels to resolve finely: the loaded pores. Default: every pore voxel (fine at every
+        wall, coarse only inside grains). Away from it a leaf is solid when its solid voxel
+        fraction is >= ``threshold``, so the walls there are those of the coarser block size.
     threshold, keep, support_axis
         As for :func:`~porefsi.solid.mesh.mesh_solid`.
 
@@ -241,43 +289,59 @@ def mesh_graded(
     -------
     MeshResult
         ``coarsen`` is the fine block size (the node grid spacing in voxels); ``leaf_counts``
-        the number of leaves of each edge length (voxels).
+        the number of solid leaves of each edge length (voxels).
 
     Raises
     ------
     InputError
-        Bad arguments (as :func:`~porefsi.solid.mesh.mesh_solid`, plus ``coarsen_max`` < 1 or
-        ``grading`` <= 0).
+        Bad arguments (as :func:`~porefsi.solid.mesh.mesh_solid`, plus ``coarsen_max`` < 1,
+        ``grading`` <= 0, or a ``refine`` mask of another shape).
     MeshError
         No solid, or no solid connected to the supports.
     """
-    if isinstance(coarsen_max, bool) or not isinstance(coarsen_max, (int, np.integer)) or coarsen_max < 1:
-        raise InputError(f"coarsen_max must be an integer >= 1 (voxels), got {coarsen_max!r}")
-    if not (np.isfinite(grading) and grading > 0):
-        raise InputError(f"grading must be a finite number > 0, got {grading!r}; 1 is the usual choice")
-    blocks = solid_blocks(image, coarsen, threshold, keep, support_axis)
+    _check_mesh_args(image, coarsen, threshold, keep)
+    refine = _check_graded_args(image, coarsen_max, grading, refine)
     c = int(coarsen)
+    fine = image.phases == 0
+    fraction, lines = _coarsen(fine, c)
+    sizes = [np.diff(g) for g in lines]
+    _require_resolved(image, fine, fraction >= float(threshold), (sizes[0][:, None, None] * sizes[1][None, :, None]
+                                                                 * sizes[2][None, None, :]).astype(float), c)
     n_levels = max(0, int(np.floor(np.log2(max(coarsen_max, c) / c) + 1e-12)))
-    sizes = [np.diff(g) == c for g in blocks.lines]
-    full = sizes[0][:, None, None] & sizes[1][None, :, None] & sizes[2][None, None, :]
-    lev = balance_levels(leaf_levels(blocks.mask, full, n_levels, float(grading)))
-    corners, counts = _leaf_tets(lev)
-    shape2 = 2 * np.asarray(lev.shape, dtype=np.int64) + 1
+    full = (sizes[0] == c)[:, None, None] & (sizes[1] == c)[None, :, None] & (sizes[2] == c)[None, None, :]
+    lev = balance_levels(leaf_levels(_coarsen(refine, c)[0] > 0, full, n_levels, float(grading)))
+    solid = _leaf_solid(fine, lines, lev, float(threshold))
+    if not solid.any():
+        raise MeshError(f"no solid left after coarsening by {c} (graded up to {coarsen_max}): every block and "
+                        "leaf is mostly pore; use a smaller coarsen or a lower threshold")
+    mask, n_removed = _keep_components(solid, keep, None if support_axis is None else axis_index(support_axis))
+    corners, counts = _leaf_tets(lev, mask)
+    ijk, tets = _number_nodes(corners, lev.shape)
+    facets = _boundary_facets(tets, len(ijk))
+    mesh = SolidMesh(points=block_points(image, lines, ijk), tets=tets, facets=facets,
+                     facet_tags=_box_tags(ijk[facets], lev.shape), box=image_box(image))
+    vol = (sizes[0][:, None, None] * sizes[1][None, :, None] * sizes[2][None, None, :]).astype(float)
+    total, kept = float((vol * solid).sum()), float((vol * mask).sum())
+    return MeshResult(mesh=mesh, removed_solid_fraction=(total - kept) / total, coarsen=c,
+                      solid_fraction_coarse=total / float(vol.sum()), n_components_removed=n_removed,
+                      leaf_counts={c * 2**L: int(n) for L, n in counts.items() if n})
+
+
+def _number_nodes(corners: np.ndarray, shape) -> tuple[np.ndarray, np.ndarray]:
+    """Unique nodes of tets given as half-block coordinates (Ne, 4, 3): block indices (Nn, 3), tets (Ne, 4)."""
+    shape2 = 2 * np.asarray(shape, dtype=np.int64) + 1
     gid = (corners[..., 0] * shape2[1] + corners[..., 1]) * shape2[2] + corners[..., 2]
     used, inv = np.unique(gid.reshape(-1), return_inverse=True)
-    tets = inv.reshape(-1, 4).astype(np.int64)
     half = np.stack([used // (shape2[1] * shape2[2]), (used // shape2[2]) % shape2[1], used % shape2[2]], axis=1)
     if np.any(half % 2):  # pragma: no cover - every node is a block-grid corner (module docstring)
         raise AssertionError("graded mesh node off the block grid")
-    ijk = half // 2
-    facets = _boundary_facets(tets, len(used))
-    fijk = ijk[facets]
-    tags = np.full(len(facets), 6, dtype=np.int8)
+    return half // 2, inv.reshape(-1, 4).astype(np.int64)
+
+
+def _box_tags(fijk: np.ndarray, shape) -> np.ndarray:
+    """Facet tags from the block indices (Nf, 3, 3) of the facets' corners: box faces 0..5, else pore wall."""
+    tags = np.full(len(fijk), PORE_WALL, dtype=np.int8)
     for ax in range(3):
         tags[np.all(fijk[:, :, ax] == 0, axis=1)] = 2 * ax
-        tags[np.all(fijk[:, :, ax] == lev.shape[ax], axis=1)] = 2 * ax + 1
-    mesh = SolidMesh(points=block_points(image, blocks.lines, ijk), tets=tets, facets=facets, facet_tags=tags,
-                     box=image_box(image))
-    return MeshResult(mesh=mesh, removed_solid_fraction=(blocks.total - blocks.kept) / blocks.total, coarsen=c,
-                      solid_fraction_coarse=blocks.fraction_coarse, n_components_removed=blocks.n_removed,
-                      leaf_counts={c * 2**L: int(n) for L, n in counts.items() if n})
+        tags[np.all(fijk[:, :, ax] == shape[ax], axis=1)] = 2 * ax + 1
+    return tags
