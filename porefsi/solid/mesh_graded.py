@@ -119,9 +119,10 @@ def balance_levels(lev: np.ndarray) -> np.ndarray:
         viol = lev > allowed
         if not viol.any():
             return lev
+        before = lev.copy()  # each leaf splits at most once per pass (a split leaf is re-checked next pass)
         for L in range(int(lev.max()), 0, -1):
             s = 2**L
-            hit = viol & (lev == L)
+            hit = viol & (before == L)
             if not hit.any():
                 continue
             cubes, crop = _pool(hit, s, np.any)  # leaves of level L lie inside this crop
@@ -187,19 +188,21 @@ def _leaf_tets(lev: np.ndarray, solid: np.ndarray) -> tuple[np.ndarray, dict]:
     """Tetrahedra of the solid leaves as node coordinates in half-block units, shape (Ne, 4, 3).
 
     ``lev``: balanced levels; ``solid``: block mask, constant over each leaf. Also returns the
-    number of solid leaves per level.
+    number of solid leaves per level. The hanging nodes are the corners of every leaf, pore or
+    solid: a face or edge of a solid leaf then carries the nodes the balanced octree puts there
+    (a face centre only with its four edge midpoints), whatever is solid behind it.
     """
     shape = np.asarray(lev.shape)
     isnode = np.zeros(tuple(shape + 1), bool)
     leaves = {}
     for L in range(int(lev.max()) + 1):
         s = 2**L
-        o = np.argwhere((lev == L) & solid)
+        o = np.argwhere(lev == L)
         o = o[np.all(o % s == 0, axis=1)]
-        leaves[L] = o
         for c in _LATTICE[[0, 2, 6, 8, 18, 20, 24, 26]] // 2:
             q = o + s * c
             isnode[q[:, 0], q[:, 1], q[:, 2]] = True
+        leaves[L] = o[solid[o[:, 0], o[:, 1], o[:, 2]]]
     out = []
     for L, o in leaves.items():
         if len(o) == 0:
