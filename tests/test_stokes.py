@@ -46,14 +46,14 @@ def test_millidarcy_is_the_literal():
 
 @pytest.mark.parametrize("n", [2, 3, 5, 8])
 def test_plane_poiseuille_error_is_exactly_two_over_n_squared(n):
-    """Plates n voxels apart: the ghost-wall scheme gives Q = Q_exact (1 + 2/n^2) exactly.
+    """Plates n voxels apart: the ghost-wall closure gives Q = Q_exact (1 + 2/n^2) exactly.
 
     (The discrete profile is the parabola plus G h^2 / 8 - uniform slip from the linear ghost -,
     and the face sum adds the midpoint-rule error G H h^2 / 24.)
     """
     a = np.zeros((3, n + 2, 4), np.uint8)
     a[:, 1:-1, :] = 1  # solid plates in the image, periodic along z
-    k = _k(a, boundary="periodic", lateral="periodic")
+    k = _k(a, boundary="periodic", lateral="periodic", wall="ghost")
     q_per_width = k * a.shape[1]  # k = Q / (A G) with A = (n + 2) x width, G = 1, per unit width
     exact = plates_flow_rate_per_width(n)
     assert q_per_width / exact - 1 == pytest.approx(2 / n**2, rel=1e-6)
@@ -89,7 +89,7 @@ def test_pressure_boundary_is_exact_for_fully_developed_flow(buffer):
 def test_square_duct_matches_series_at_second_order():
     errs = {}
     for w in (4, 8, 16):
-        k = _k(np.ones((2, w, w)), boundary="periodic")
+        k = _k(np.ones((2, w, w)), boundary="periodic", wall="ghost")
         exact = rectangular_duct_flow_rate(w / 2, w / 2) / w**2
         errs[w] = k / exact - 1
     assert 0 < errs[16] < 0.02
@@ -129,11 +129,11 @@ def test_rectangular_duct_series_against_plates_limit():
 
 @pytest.mark.parametrize("radius,centre", [(3, "corner"), (3, "centre"), (8, "corner"), (8, "centre")])
 def test_hagen_poiseuille_tube(radius, centre):
-    """Voxelised tubes: within 6 % of Poiseuille for a circle of the same area (the voxel area
+    """Voxelised tubes, ghost closure: within 6 % of Poiseuille for a circle of the same area (the voxel area
     itself differs from pi R^2 by up to 13 % at R = 3), and above the exact flow through the
     staircase section (the 5-point stencil misses the solid corners diagonal to a face)."""
     sec = disk(radius, centre)
-    k = _k(_prism(sec), boundary="periodic")
+    k = _k(_prism(sec), boundary="periodic", wall="ghost")
     q = k * sec.size
     r_eq = math.sqrt(sec.sum() / math.pi)
     assert abs(q / tube_flow_rate(r_eq) - 1) < 0.06

@@ -53,7 +53,7 @@ LATERALS = ("wall", "periodic")
 #: Tangential wall closures (:mod:`porefsi.stokes._grid`).
 WALLS = tuple(_WALLS)
 #: The closure :func:`voxel_permeability` uses unless told.
-DEFAULT_WALL = "ghost"
+DEFAULT_WALL = "channel"
 #: The true relative residual may exceed rtol (MINRES stops on the preconditioned one) by at most
 #: this factor; measured 1.0-1.3 on every image in docs/stokes.md.
 TRUE_RESIDUAL_FACTOR = 100.0
