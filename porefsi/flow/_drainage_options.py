@@ -19,7 +19,7 @@ from porefsi._schema import Limits, option, validate
 from porefsi.errors import ConfigError, InputError
 
 __all__ = ["DrainageOptions", "RunControl", "SCHEMES", "SOLVERS", "DEFAULT_LOCAL_SOLVES", "DEFAULT_HOPS",
-           "DEFAULT_LOCAL_MENISCI", "options_from"]
+           "DEFAULT_LOCAL_MENISCI", "DEFAULT_TIE_TOLERANCE", "options_from"]
 
 #: Drainage schemes: ``'exact'`` (a pressure solve after every event, the reference) and
 #: ``'adaptive'`` (certified quasi-static batches without solves, dynamic events elsewhere).
@@ -30,7 +30,9 @@ SOLVERS = ("auto", "lowrank", "direct", "amg", "jacobi", "split", "hybrid")
 DEFAULT_LOCAL_SOLVES = 8
 DEFAULT_HOPS = 3
 DEFAULT_LOCAL_MENISCI = 8
-_ADAPTIVE_KNOBS = {"local_solves": DEFAULT_LOCAL_SOLVES, "hops": DEFAULT_HOPS, "local_menisci": DEFAULT_LOCAL_MENISCI}
+DEFAULT_TIE_TOLERANCE = 0.0
+_ADAPTIVE_KNOBS = {"local_solves": DEFAULT_LOCAL_SOLVES, "hops": DEFAULT_HOPS, "local_menisci": DEFAULT_LOCAL_MENISCI,
+                   "tie_tolerance": DEFAULT_TIE_TOLERANCE}
 
 _POSITIVE = Limits(0.0, None, lo_open=True)
 
@@ -65,6 +67,11 @@ class DrainageOptions:
                        limits=Limits(1))
     local_menisci: int = option(DEFAULT_LOCAL_MENISCI, "adaptive only: most active menisci for a local solve",
                                 limits=Limits(0))
+    tie_tolerance: float = option(DEFAULT_TIE_TOLERANCE, "adaptive only: relative band by which a quasi-static "
+                                  "fill's inlet-pressure bound may exceed the next entry threshold and still be filled "
+                                  "without a solve, in invasion-percolation order (0 = the rigorous certificate: the "
+                                  "exact scheme's events; > 0 = near-ties resolved quasi-statically, an approximation "
+                                  "measured in docs/drainage.md)", limits=Limits(0.0, 1.0))
 
     def __post_init__(self):
         if isinstance(self.skip_solves, bool):

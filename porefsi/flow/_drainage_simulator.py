@@ -41,7 +41,7 @@ def _make_engine(graph, rate, inlet_pressure, opts: dict) -> Engine:
     if o.pop("scheme", "exact") == "adaptive":
         from porefsi.flow._drainage_adaptive import AdaptiveEngine
 
-        local = (o.pop("local_solves"), o.pop("hops"), o.pop("local_menisci"))
+        local = (o.pop("local_solves"), o.pop("hops"), o.pop("local_menisci"), o.pop("tie_tolerance", 0.0))
         return AdaptiveEngine(graph, rate, inlet_pressure, **o, local=local)
     return Engine(graph, rate, inlet_pressure, **o)
 
