@@ -8,10 +8,10 @@ from scipy import ndimage
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import VoxelImage
 from porefsi.solid.bc import Affine, Fixed, Roller
+from porefsi.solid.graded import _leaf_tets, _number_nodes, balance_levels, leaf_levels, mesh_graded
 from porefsi.solid.interpolate import p1_interpolate
 from porefsi.solid.materials import StVenantKirchhoff
 from porefsi.solid.mesh import FACE_NAMES, PORE_WALL, mesh_solid
-from porefsi.solid.mesh_graded import _leaf_tets, _number_nodes, balance_levels, leaf_levels, mesh_graded
 from porefsi.solid.model import SolidModel
 from porefsi.solid.quality import tet_quality
 from porefsi.solid.static import solve_static
