@@ -8,10 +8,10 @@ from scipy import ndimage
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import VoxelImage
 from porefsi.solid.bc import Affine, Fixed, Roller
+from porefsi.solid.graded import _leaf_tets, _number_nodes, balance_levels, leaf_levels, mesh_graded
 from porefsi.solid.interpolate import p1_interpolate
 from porefsi.solid.materials import StVenantKirchhoff
 from porefsi.solid.mesh import FACE_NAMES, PORE_WALL, mesh_solid
-from porefsi.solid.mesh_graded import _leaf_tets, _number_nodes, balance_levels, leaf_levels, mesh_graded
 from porefsi.solid.model import SolidModel
 from porefsi.solid.quality import tet_quality
 from porefsi.solid.static import solve_static
@@ -220,3 +220,29 @@ def test_fixed_support_with_coarse_leaves_solves():
     u, _ = solve_static(model, 0.0, rtol=1e-10)
     R = model.reactions(u, 0.0)["zmin"]
     assert R[2] == pytest.approx(1e-6 * m.n_nodes, rel=1e-8)
+
+
+def test_case_key_builds_a_graded_problem_refined_at_the_predicted_invasion():
+    """``[solid] mesh = "graded"`` with ``refine = "invaded"``: the coupled problem's mesh has fine
+    blocks at the pores invasion percolation fills first and coarse leaves elsewhere; its nodes sit
+    on the fine block grid (the coupling's node spacing); bad values are ConfigErrors."""
+    from porefsi import Case, problem_from_case
+    from porefsi.coupling.problem import predicted_invasion
+    from porefsi.errors import ConfigError
+
+    case = Case().replace(drainage={"t_end": 2.0}, solid={"mesh": "graded", "coarsen": 6, "coarsen_max": 24,
+                                                           "grading": 0.5, "refine": "invaded"})
+    prob = problem_from_case(case)
+    assert prob.mesh_result.coarsen == 6 and set(prob.mesh_result.leaf_counts) >= {6, 12}
+    x = (prob.mesh.points - prob.image.origin) / prob.node_spacing
+    assert np.abs(x - np.rint(x)).max() < 1e-9
+    inv = predicted_invasion(prob.extraction, prob.options)
+    vol = inv.sum() * prob.image.voxel_size**3
+    assert 2 * 1.25e-13 * 2.0 <= vol < 0.5 * prob.image.porosity * np.prod(prob.image.extent)
+    # coarse leaves away from the predicted invasion: fewer nodes than the uniform mesh of the fine size
+    uni = problem_from_case(Case().replace(drainage={"t_end": 2.0}, solid={"coarsen": 6}))
+    assert prob.mesh.n_nodes < uni.mesh.n_nodes
+    with pytest.raises(ConfigError, match="mesh"):
+        Case().replace(solid={"mesh": "octree"})
+    with pytest.raises(ConfigError, match="grading"):
+        Case().replace(solid={"grading": 0.0})

@@ -22,9 +22,9 @@ from porefsi.network.extract import Extraction, extract_network
 from porefsi.network.network import Network
 from porefsi.solid.bc import check_load_path, uniaxial_bcs
 from porefsi.solid.footprint import choose_linear_solver
+from porefsi.solid.graded import mesh_graded
 from porefsi.solid.materials import make_material
 from porefsi.solid.mesh import MeshResult, SolidMesh, mesh_solid
-from porefsi.solid.mesh_graded import mesh_graded
 from porefsi.solid.model import SolidModel
 
 __all__ = ["CoupledProblem", "build_problem", "build_solid", "extract_flow_network", "SolverChoiceWarning",

@@ -206,7 +206,7 @@ class MeshResult:
     n_components_removed : int
         Number of face-connected solid components dropped.
     leaf_counts : dict or None
-        Graded meshes (``porefsi.solid.mesh_graded``): number of leaf cubes of each edge length
+        Graded meshes (``porefsi.solid.graded``): number of leaf cubes of each edge length
         in voxels, ``{coarsen: n, 2 coarsen: n, ...}``; None for a uniform mesh.
     """
 

@@ -1,11 +1,12 @@
-"""Graded conforming tetrahedral meshes of the solid: fine blocks at the pore walls, coarse in the grains.
+"""Graded conforming tetrahedral meshes of the solid: fine blocks where the load is, coarse elsewhere.
 
-The solid is first block-coarsened as by :func:`~porefsi.solid.mesh.mesh_solid` with the fine
-block size ``coarsen`` (so the pore walls, where the load sits, are exactly those of the uniform
-mesh of that block size). Solid blocks far from the walls are then merged into the leaves of a
-2:1-balanced octree: a leaf of edge ``s`` blocks must lie more than ``grading * s`` blocks from the
-nearest pore block (centre to centre), consist of full-size solid blocks only, and touch (by a
-face, an edge or a corner) no leaf more than one level finer or coarser.
+The image is block-coarsened as by :func:`~porefsi.solid.mesh.mesh_solid` with the fine block
+size ``coarsen``. Blocks holding a voxel of the ``refine`` mask (the loaded pores; by default
+every pore voxel) stay fine; elsewhere blocks merge into the leaves of a 2:1-balanced octree: a
+leaf of edge ``s`` blocks must lie more than ``grading * s`` blocks (centre to centre) from every
+fine block, consist of full-size blocks only, and touch (by a face, an edge or a corner) no leaf
+more than one level finer or coarser. A leaf is solid when its solid voxel fraction is
+``>= threshold``: near ``refine`` the walls are exactly those of the uniform mesh of ``coarsen``.
 
 Every leaf cube is split into tetrahedra that conform with its neighbours (no hanging nodes):
 
@@ -21,8 +22,10 @@ Every leaf cube is split into tetrahedra that conform with its neighbours (no ha
 Both leaves sharing a face see the same nodes on it and so triangulate it the same way; with the
 2:1 balance over faces, edges and corners, a face of a leaf of edge ``s`` carries nodes only on
 the grid of spacing ``s / 2``, so every node of the mesh is a corner of the fine block grid (the
-graded mesh's nodes are a subset of the uniform mesh's of the same ``coarsen``). The dihedral
-angles of all templates are >= 35.3 degrees whatever the grading (the quality check is in
+graded mesh's nodes lie on the uniform mesh's node grid of the same ``coarsen``). The hanging
+nodes are the corners of every leaf, pore or solid, so a face centre always comes with its four
+edge midpoints whatever is solid behind the face. The dihedral angles of all templates lie in
+[35.26, 125.26] degrees whatever the grading (the quality check is in
 :func:`porefsi.solid.quality.tet_quality`).
 """
 
