@@ -16,6 +16,27 @@ from porefsi._numba import jit
 
 
 @jit
+def _wall_edges(labels, i, j, k, ax):
+    """Edges of the face between voxel (i, j, k) and its +``ax`` neighbour that end at the wall.
+
+    The face's four in-plane neighbour positions (the same pair of voxels shifted by one voxel
+    along each in-plane axis, inside the image) count when either voxel there is solid (< 0).
+    """
+    dims = labels.shape
+    n = 0
+    for b in range(3):
+        if b == ax:
+            continue
+        for s in (-1, 1):
+            u = (i + s * (b == 0), j + s * (b == 1), k + s * (b == 2))
+            if u[b] < 0 or u[b] >= dims[b]:
+                continue
+            if labels[u[0], u[1], u[2]] < 0 or labels[u[0] + (ax == 0), u[1] + (ax == 1), u[2] + (ax == 2)] < 0:
+                n += 1
+    return n
+
+
+@jit
 def _sections(labels, conns, n_pores):
     """Vector area, face count and wall-edge count of every throat's interface.
 
@@ -25,9 +46,9 @@ def _sections(labels, conns, n_pores):
     ``-e_ax`` otherwise; their sum is the throat's *vector area* (its length is the area of the
     section projected on the plane it is closest to: exact for a flat section of any orientation,
     the staircase cancels). A *wall edge* is an edge of an interface face whose in-plane
-    neighbouring face position (the same pair of voxels shifted by one voxel along one of the
-    four in-plane directions) has a solid voxel on either side: the interface ends at the wall
-    there. Positions outside the image are not walls (the box cuts the section).
+    neighbouring face position has a solid voxel on either side (:func:`_wall_edges`): the
+    interface ends at the wall there. Positions outside the image are not walls (the box cuts
+    the section).
 
     Parameters
     ----------
@@ -53,9 +74,6 @@ def _sections(labels, conns, n_pores):
     area = np.zeros((n_t, 3), np.float64)
     nf = np.zeros(n_t, np.int64)
     nw = np.zeros(n_t, np.int64)
-    dims = np.array([nx, ny, nz], np.int64)
-    u = np.zeros(3, np.int64)
-    v = np.zeros(3, np.int64)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
@@ -63,39 +81,17 @@ def _sections(labels, conns, n_pores):
                 if la < 0:
                     continue
                 for ax in range(3):
-                    u[0] = i
-                    u[1] = j
-                    u[2] = k
-                    v[0] = i
-                    v[1] = j
-                    v[2] = k
-                    v[ax] += 1
-                    if v[ax] >= dims[ax]:
+                    a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
+                    if a >= nx or b >= ny or c >= nz:
                         continue
-                    lb = labels[v[0], v[1], v[2]]
-                    if lb < 0 or lb == la:
-                        continue
-                    lo = min(la, lb)
-                    hi = max(la, lb)
-                    key = np.int64(lo) * n_pores + hi
-                    if key not in table:
+                    lb = labels[a, b, c]
+                    key = np.int64(min(la, lb)) * n_pores + max(la, lb)
+                    if lb < 0 or lb == la or key not in table:
                         continue
                     t = table[key]
-                    area[t, ax] += 1.0 if la == lo else -1.0
+                    area[t, ax] += 1.0 if la < lb else -1.0
                     nf[t] += 1
-                    for b in range(3):
-                        if b == ax:
-                            continue
-                        for s in (-1, 1):
-                            ub = u[b] + s
-                            if ub < 0 or ub >= dims[b]:
-                                continue
-                            u[b] = ub
-                            v[b] = ub
-                            if labels[u[0], u[1], u[2]] < 0 or labels[v[0], v[1], v[2]] < 0:
-                                nw[t] += 1
-                            u[b] -= s
-                            v[b] -= s
+                    nw[t] += _wall_edges(labels, i, j, k, ax)
     return area, nf, nw
 
 
