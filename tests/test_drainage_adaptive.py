@@ -192,13 +192,12 @@ def test_tie_tolerance_fills_near_ties_quasi_statically_and_stays_close(net):
         DrainageSimulator(net, scheme="adaptive", tie_tolerance=-0.1)
 
 
-@pytest.mark.parametrize(("ca", "p_tol", "rank"), [(1e-7, 1e-2, 0.99), (1e-6, 1e-2, 0.99), (1e-5, 3e-2, 0.98)])
-def test_default_adaptive_histories_against_the_exact_scheme(net, ca, p_tol, rank):
-    """The defaults (``tie_tolerance=1``, global solves): Sw and the inlet pressure at sample
-    times (a global solve each), breakthrough and the invasion order close to the exact scheme's
-    before and after breakthrough; ``scheme="exact"`` is the switch that turns it all off. At
-    Ca = 1e-5 the inlet pressure is off by a median 1.7 % and the rank correlation is 0.986 here
-    (measured; docs/stability.md, where the adaptive scheme fails), hence its looser bounds."""
+@pytest.mark.parametrize(("ca", "solver"), [(1e-7, "auto"), (1e-6, "auto"), (1e-6, "split")])
+def test_default_adaptive_histories_against_the_exact_scheme(net, ca, solver):
+    """The defaults (``tie_tolerance=1``, global solves; ``'split'``: the solver 'auto' picks
+    above 20 000 pores): Sw and the inlet pressure at sample times (a global solve each),
+    breakthrough and the invasion order close to the exact scheme's before and after
+    breakthrough; ``scheme="exact"`` is the switch that turns it all off."""
     from scipy.stats import spearmanr
 
     fl = Fluids()
@@ -206,12 +205,31 @@ def test_default_adaptive_histories_against_the_exact_scheme(net, ca, p_tol, ran
     bt = _run(net, rate, "exact").breakthrough_time
     ts = np.linspace(0.0, 1.25 * bt, 26)[1:]
     pa, swa, ta, bta, ca_ = _sampled(net, rate, "exact", ts)
-    pb, swb, tb, btb, c = _sampled(net, rate, "adaptive", ts)
+    pb, swb, tb, btb, c = _sampled(net, rate, "adaptive", ts, solver=solver)
     assert "n_certified_fills" not in ca_ and c["n_local_solves"] == 0
     assert c["n_solves"] < ca_["n_solves"]
     assert btb == pytest.approx(bta, rel=1e-2)
     np.testing.assert_allclose(swb, swa, rtol=1e-2)
-    assert np.median(np.abs(pb - pa) / pa) < p_tol
+    assert np.median(np.abs(pb - pa) / pa) < 1e-2
     both = np.isfinite(ta) & np.isfinite(tb)
     assert both.sum() >= 0.97 * np.isfinite(ta).sum()
-    assert spearmanr(ta[both], tb[both])[0] > rank
+    assert spearmanr(ta[both], tb[both])[0] > 0.99
+
+
+def test_tie_tolerance_is_off_above_its_capillary_number(net):
+    """Above TIE_MAX_CA (1e-6) the tolerance is not applied: at Ca = 1e-5 (where a tolerance of 1
+    put a lattice's breakthrough 4.7 % off, docs/stability.md) the default adaptive run makes the
+    exact scheme's events; at 1e-6 it is applied."""
+    from porefsi.flow._drainage_options import TIE_MAX_CA
+
+    fl = Fluids()
+    assert DrainageSimulator(net, rate=_rate_for_ca(net, fl, TIE_MAX_CA), scheme="adaptive")._opts["tie_tolerance"] == 1
+    rate = _rate_for_ca(net, fl, 1e-5)
+    sim = DrainageSimulator(net, rate=rate, scheme="adaptive")
+    assert sim.capillary_number == pytest.approx(1e-5) and sim._opts["tie_tolerance"] == 0.0
+    ref = _run(net, rate, "exact", skip_solves=False)
+    res = _run(net, rate, "adaptive")
+    order_ref, t_ref = _order(ref)
+    order, t = _order(res)
+    np.testing.assert_array_equal(order, order_ref)
+    np.testing.assert_allclose(t, t_ref, rtol=1e-7)
