@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import os
 
-for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # numba: see cases/_common.py
     os.environ.setdefault(_v, "1")  # before numpy/numba load: single-thread CPU time is comparable
 
 import gc  # noqa: E402
@@ -134,8 +134,8 @@ def run_variant(case, skip_solves=None) -> dict:
     try:
         prob = problem_from_case(case)
         run = CoupledRun(prob)
-        if skip_solves is not None:  # not a case-file key: the DPN option set through the API
-            run.sim = DrainageSimulator(prob.network, prob.fluids, rate=case.drainage.rate, axis=case.image.axis,
+        if skip_solves is not None:  # the DPN option drainage.skip_solves, varied here
+            run.sim = DrainageSimulator(prob.network, prob.fluids, case.drainage, axis=case.image.axis,
                                         skip_solves=skip_solves)
         res["U"].append(np.zeros((prob.mesh.n_nodes, 3)))
         for rec in run.steps():

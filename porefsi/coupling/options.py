@@ -1,7 +1,8 @@
 """The option objects of a coupled simulation: small frozen dataclasses, validated when made.
 
 Each class is one section of a case file (:mod:`porefsi.case.config` reads the TOML into these
-very classes), but nothing here knows of files: a Python user builds them directly. Defaults
+very classes; ``[drainage]`` is the flow layer's :class:`~porefsi.flow.drainage.DrainageOptions`,
+re-exported here), but nothing here knows of files: a Python user builds them directly. Defaults
 are the seed paper's table 2 set-up; every field's unit, bounds and meaning are declared next to
 it (:func:`porefsi._schema.option`), bounds of physical quantities taken from the physics
 classes (:class:`~porefsi.solid.materials.Material`).
@@ -21,6 +22,7 @@ import numpy as np
 
 from porefsi._schema import Limits, option, validate
 from porefsi.errors import ConfigError
+from porefsi.flow.drainage import DrainageOptions
 from porefsi.flow.fluids import Fluids
 from porefsi.solid.materials import GRAIN_DENSITY, Material
 
@@ -33,20 +35,6 @@ __all__ = ["DrainageOptions", "SolidOptions", "NetworkOptions", "CouplingOptions
            "CoupledOptions"]
 
 _POSITIVE = Limits(0.0, None, lo_open=True)
-
-
-@dataclasses.dataclass(frozen=True)
-class DrainageOptions:
-    """Injection of the non-wetting fluid."""
-
-    rate: float = option(1.25e-13, "volumetric injection rate (paper case A)", limits=_POSITIVE, unit="m^3/s")
-    t_end: float = option(20.0, "injection time (paper: 20 s)", limits=_POSITIVE, unit="s")
-    scheme: str = option("exact", "exact = a pressure solve after every event (the reference); adaptive = "
-                         "quasi-static fills in certified batches, local pressure updates elsewhere (docs/drainage.md)",
-                         choices=("exact", "adaptive"))
-
-    def __post_init__(self):
-        validate(self, "drainage")
 
 
 @dataclasses.dataclass(frozen=True)
