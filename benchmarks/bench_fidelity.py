@@ -123,7 +123,7 @@ def measure(sa, case, ref) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--images", nargs="*", default=["berea_crop", "blobs", "tiled"])
-    ap.add_argument("--phase", default="all", choices=("ref", "sweep", "auto", "all", "calibrate", "fit"))
+    ap.add_argument("--phase", default="all", choices=("ref", "sweep", "auto", "all", "calibrate", "fit", "report"))
     ap.add_argument("--work", type=Path, default=ROOT / "_heldout")
     ap.add_argument("--berea", type=Path, default=None)
     ap.add_argument("--tolerances", nargs="*", type=float, default=[0.3, 0.45])
@@ -135,6 +135,8 @@ def main(argv=None) -> int:
         return calibrate(sa, args.work)
     if args.phase == "fit":
         return write_calibration(args.work / "calibration.json")
+    if args.phase == "report":
+        return report(args.work, args.images)
     out_file = args.work / "heldout.json"
     results = json.loads(out_file.read_text()) if out_file.exists() else {}
     for name in args.images:
@@ -215,9 +217,6 @@ ADAPTIVE_DRAINAGE = {"source": "docs/drainage.md, Adaptive scheme, Berea 400^3 r
                      "adaptive_cpu_s": [3.2, 13.3, 29.5]}
 DRAINAGE_COST = {"source": "docs/drainage.md, Berea 400^3 exact scheme at the paper rate", "exact_cpu_s": 3.3,
                  "fills": 930, "pores": 8153}
-#: The linear-response solid against the nonlinear one on the default case (docs/coupling.md,
-#: "Linear-response solid", the table's first row: displacement field max rel. difference).
-LINEAR_RESPONSE = {"source": "docs/coupling.md, Linear-response solid, built-in 120^3 row", "field_diff": 1.1e-7}
 RUN_KEYS = ("coarsen", "n_tets", "n_dofs", "n_steps", "cpu_s", "err_field", "diff_vs_baseline", "stage_seconds")
 
 
@@ -273,12 +272,45 @@ def write_calibration(extra_file: Path) -> int:
             "direct_series": ["coarsen4", "baseline", "coarsen6", "coarsen8", "coarsen10", "coarsen12"],
             "step_series": ["dt5", "dt2", "baseline", "dt0.5"], "hull_runs": ["tp100", "tp400", "tp800", "tp1000",
                                                                              "paper", "old_default", "hull_tdg_c6"],
-            "drainage": DRAINAGE_COST, "adaptive_drainage": ADAPTIVE_DRAINAGE, "linear_response": LINEAR_RESPONSE}
+            "drainage": DRAINAGE_COST, "adaptive_drainage": ADAPTIVE_DRAINAGE}
     out = {"about": "porefsi fidelity model: constants fitted (porefsi/case/_fidelity_fit.py) from 'data'; "
                     "docs/fidelity.md", **fit_calibration(data), "data": data}
     dest = ROOT / "porefsi" / "case" / "fidelity_calibration.json"
     dest.write_text(json.dumps(out, indent=1) + "\n")
     print(json.dumps({k: v for k, v in out.items() if k != "data"}, indent=1))
+    return 0
+
+
+def _predict(image, base, c: int) -> tuple[float, float]:
+    """The model's expected error (converged, vs the coarsen-3 reference) of coarsen ``c`` otherwise default."""
+    from porefsi.case._fidelity_model import Setting, expected_error, scene_of
+
+    scene = scene_of(image, base, extra_coarsen=[c])
+    return expected_error(scene, Setting(coarsen=c)), expected_error(scene, Setting(coarsen=c), vs_reference=True)
+
+
+def report(work: Path, images) -> int:
+    """Markdown tables of the held-out images: the coarsening sweep and the auto runs, predicted vs achieved."""
+    from porefsi.image.io import read_image
+
+    print("| image | run | coarsen | predicted vs ref | achieved | achieved / predicted | CPU s (predicted) |")
+    print("|---|---|---:|---:|---:|---:|---:|")
+    for name in images:
+        f = work / name / "heldout.json"
+        if not f.exists():
+            continue
+        entry = json.loads(f.read_text())[name]
+        path = work / name / f"{name}.npz"
+        img, base = read_image(path), base_case(path)
+        for c, row in sorted(entry.get("sweep", {}).items(), key=lambda kv: int(kv[0])):
+            _, pr = _predict(img, base, int(c))
+            print(f"| {name} | coarsen {c} | {c} | {pr:.3f} | {row['err_field']:.3f} | {row['err_field'] / pr:.2f} | "
+                  f"{row['cpu_s']:.1f} |")
+        for tol, row in entry.get("auto", {}).items():
+            pr = row["fidelity_expected_error_vs_reference"]
+            c = row["fidelity_settings"]["solid.coarsen"]
+            print(f"| {name} | **auto {tol}** | {c} | {pr:.3f} | {row['err_field']:.3f} | "
+                  f"{row['err_field'] / pr:.2f} | {row['cpu_s']:.1f} ({row['fidelity_expected_cpu_s']:.1f}) |")
     return 0
 
 

@@ -89,6 +89,7 @@ def fit_calibration(data: dict) -> dict:
                                  base["n_dofs"]))
     amg = runs["coarsen3_static"]
     cost["amg_per_dof_step"] = _stage(amg, "solid") / (amg["n_dofs"] * steps)
+    cost["adaptive_fluid_extra_s"] = max(_stage(runs["adaptive"], "fluid") - _stage(base, "fluid"), 0.0)
     ad = data["adaptive_drainage"]
     return {
         "mesh": {"A": A, "p": p, "reference_coarsen": data["reference"]["coarsen"]},
@@ -96,7 +97,7 @@ def fit_calibration(data: dict) -> dict:
         "integrator": {"tdg_left": runs["left"]["diff_vs_baseline"]},
         "update": {"geometric": 0.0, "none": runs["update_none"]["diff_vs_baseline"] / strain,
                    "reextract": runs["update_reextract"]["diff_vs_baseline"] / strain},
-        "response": {"nonlinear": 0.0, "auto": data["linear_response"]["field_diff"] / strain},
+        "response": {"nonlinear": 0.0, "auto": runs["response_auto"]["diff_vs_baseline"] / strain},
         "scheme": {"adaptive": {"log10_ca": [math.log10(x) for x in ad["ca"]],
                                 "error": [max(a, b) for a, b in zip(ad["sw_max_rel"], ad["p_in_median_rel"],
                                                                     strict=True)],

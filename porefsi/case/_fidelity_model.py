@@ -22,8 +22,9 @@ Error (relative L2 of the nodal displacement over the run, the speed-accuracy st
 Cost (CPU seconds, one thread): extraction per voxel, meshing and interface per tetrahedron
 (hull: per pore and test point), the solid's factorisation as a quadratic in log dofs (direct LU)
 or per dof and step (AMG-CG above the direct limit), per step its back-substitution, the stress per
-tetrahedron, the network update per pore, the drainage per step and per event x pore; TDG,
-the linear response and the adaptive scheme as measured factors on their stage.
+tetrahedron, the network update per pore, the drainage per step and per event x pore; TDG
+and the linear response as measured factors on the solid stage, the adaptive scheme as the
+measured ratio on the drainage (interpolated in log10 Ca) plus its measured extra set-up.
 """
 
 from __future__ import annotations
@@ -44,6 +45,9 @@ from porefsi.solid.mesh import MIN_BLOCKS, MIN_PORE_KEPT, mesh_size
 __all__ = ["Scene", "Setting", "scene_of", "calibration", "expected_error", "expected_cpu", "pore_chord"]
 
 CALIBRATION_FILE = "fidelity_calibration.json"
+#: Coarsenings ``auto`` considers; of them those whose blocks tile the image (every size a multiple),
+#: as in the calibration, unless fewer than two do.
+COARSENINGS = tuple(range(2, 17))
 
 
 @functools.cache
@@ -92,7 +96,7 @@ class Scene:
     n_events : float
         Expected fills over the horizon (injected volume over the mean pore volume, at most n_pores).
     mesh : dict
-        coarsening -> (n_tets, n_dofs, porosity kept) of the feasible coarsenings.
+        coarsening -> (n_tets, n_dofs, porosity kept, peak bytes, auto may choose it).
     memory_bytes : float
         The machine's physical memory (candidates above it are infeasible).
     """
@@ -111,8 +115,8 @@ class Scene:
     memory_bytes: float = math.inf
 
     def feasible(self, coarsen: int) -> bool:
-        """Whether the mesher accepts ``coarsen`` on this image and the run fits in memory."""
-        return coarsen in self.mesh and self.mesh[coarsen][3] <= self.memory_bytes
+        """Whether ``auto`` may choose ``coarsen`` (meshable, tiling the image, fitting in memory)."""
+        return coarsen in self.mesh and self.mesh[coarsen][4] and self.mesh[coarsen][3] <= self.memory_bytes
 
 
 def pore_chord(phases: np.ndarray) -> float:
@@ -125,22 +129,28 @@ def pore_chord(phases: np.ndarray) -> float:
     return 3.0 * float(np.count_nonzero(pore)) / runs if runs else 0.0
 
 
-def _mesh_table(image, cal: dict) -> dict:
-    """Coarsening -> (n_tets, n_dofs, porosity kept, peak bytes) for the coarsenings the mesher accepts."""
+def _mesh_table(image, extra=()) -> dict:
+    """Coarsening -> (n_tets, n_dofs, porosity kept, peak bytes, auto may choose it).
+
+    ``auto`` may choose a coarsening the mesher accepts (enough blocks, enough porosity kept) whose
+    blocks tile the image (every size a multiple, as in the calibration; any size if fewer than two
+    tile it); ``extra`` coarsenings (a case's own, the presets') are sized too.
+    """
     from porefsi.case.resources import estimate_run
 
     phi = float(np.count_nonzero(image.phases == 1)) / image.phases.size
+    tiling = [c for c in COARSENINGS if all(n % c == 0 for n in image.shape)]
+    allowed = set(tiling if len(tiling) >= 2 else COARSENINGS)
     out = {}
-    for c in range(2, 17):
-        if min(image.shape) // c < MIN_BLOCKS:
-            break
+    for c in sorted(set(COARSENINGS) | {int(x) for x in extra}):
+        if min(image.shape) // c < MIN_BLOCKS and c not in extra:
+            continue
         n_tets, _ = mesh_size(image, coarsen=c)
         blocks = math.prod(-(-n // c) for n in image.shape)
         kept = 1.0 - n_tets / 5.0 / blocks
-        if kept < MIN_PORE_KEPT * phi or n_tets == 0:
-            continue
+        ok = c in allowed and min(image.shape) // c >= MIN_BLOCKS and kept >= MIN_PORE_KEPT * phi and n_tets > 0
         est = estimate_run(image, c, "direct", budget=_physical_memory())
-        out[c] = (est.n_tets, est.n_dofs, kept, est.peak_bytes)
+        out[c] = (est.n_tets, est.n_dofs, kept, est.peak_bytes, ok)
     return out
 
 
@@ -151,8 +161,8 @@ def _physical_memory() -> float:
         return math.inf
 
 
-def scene_of(image, case, cal: dict | None = None) -> Scene:
-    """The :class:`Scene` of ``case`` on its (cropped) ``image``."""
+def scene_of(image, case, cal: dict | None = None, extra_coarsen=()) -> Scene:
+    """The :class:`Scene` of ``case`` on its (cropped) ``image`` (``extra_coarsen``: also size these meshes)."""
     cal = calibration() if cal is None else cal
     vs = float(image.voxel_size)
     n_pore = int(np.count_nonzero(image.phases == 1))
@@ -168,7 +178,7 @@ def scene_of(image, case, cal: dict | None = None) -> Scene:
     n_steps = max(1, math.ceil(case.drainage.t_end / case.coupling.exchange_dt - 1e-9))
     return Scene(tuple(int(n) for n in image.shape), int(image.phases.size), n_pore, lam, vs, n_steps,
                  fl.capillary_number(case.drainage.rate, face), entry / case.solid.E, n_pores, n_events,
-                 _mesh_table(image, cal), _physical_memory())
+                 _mesh_table(image, (case.solid.coarsen, *extra_coarsen)), _physical_memory())
 
 
 def _mesh_error(scene: Scene, coarsen: int, cal: dict) -> float:
@@ -232,5 +242,5 @@ def expected_cpu(scene: Scene, s: Setting, cal: dict | None = None) -> float:
         steps += scene.n_steps * c["update_per_pore_step"] * scene.n_pores
     fluid = c["fluid_per_event_pore"] * scene.n_events * scene.n_pores
     if s.scheme == "adaptive":
-        fluid *= _interp_log_ca(scene, cal["scheme"]["adaptive"], "fluid_cost_ratio")
+        fluid = fluid * _interp_log_ca(scene, cal["scheme"]["adaptive"], "fluid_cost_ratio") + c["adaptive_fluid_extra_s"]
     return float(setup + solid + steps + fluid)

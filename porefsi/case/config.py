@@ -225,8 +225,8 @@ def case_from_dict(data: dict, *, name: str = "case", where: str = "case") -> Ca
 
 def _fidelity_keys(data: dict) -> list[str]:
     """The fidelity-controlled keys (``section.key``) that ``data`` (sections of dicts) sets."""
-    return [f"{sec}.{k}" for sec, val in data.items() if isinstance(val, dict) for k in val
-            if f"{sec}.{k}" in FIDELITY_KEYS]
+    return sorted(f"{sec}.{k}" for sec, val in data.items() if isinstance(val, dict) for k in val
+                  if f"{sec}.{k}" in FIDELITY_KEYS)
 
 
 def _with_fidelity_keep(data: dict) -> dict:

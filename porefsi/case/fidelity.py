@@ -167,7 +167,7 @@ def choose(scene: Scene, case: Case, tolerance: float | None = None, budget_s: f
     scored = []
     for i, cand in enumerate(candidates(case)):
         s = _setting(case, cand)
-        if not scene.feasible(s.coarsen):
+        if not (scene.feasible(s.coarsen) or "solid.coarsen" in case.fidelity.keep):
             continue
         scored.append((expected_error(scene, s, cal), expected_cpu(scene, s, cal), i, cand))
     if not scored:
@@ -213,8 +213,8 @@ def resolve_fidelity(case: Case, image=None) -> tuple[Case, FidelityChoice | Non
         from porefsi.case.problem import load_case_image
 
         image = load_case_image(case)
-    scene = scene_of(image, case)
     keep = set(fc.keep)
+    scene = scene_of(image, case, extra_coarsen=[p["solid.coarsen"] for p in PRESETS.values()])
     if fc.preset == "auto":
         try:
             chosen, _, _, met = choose(scene, case, fc.tolerance, fc.budget_s)
