@@ -37,7 +37,7 @@ import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
 from porefsi import load_case  # noqa: E402
-from porefsi.image.io import load_sample, write_image  # noqa: E402
+from porefsi.image.io import load_sample, read_image, write_image  # noqa: E402
 from porefsi.image.voxel_image import VoxelImage  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -123,11 +123,12 @@ def measure(sa, case, ref) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--images", nargs="*", default=["berea_crop", "blobs", "tiled"])
-    ap.add_argument("--phase", default="all", choices=("ref", "sweep", "auto", "all", "calibrate", "fit", "report"))
+    ap.add_argument("--phase", default="all", choices=("ref", "sweep", "auto", "all", "calibrate", "fit", "report",
+                                                       "sample_auto", "chart"))
     ap.add_argument("--work", type=Path, default=ROOT / "_heldout")
     ap.add_argument("--berea", type=Path, default=None)
     ap.add_argument("--tolerances", nargs="*", type=float, default=[0.3, 0.45])
-    ap.add_argument("--coarsen", nargs="*", type=int, default=[4, 5, 6, 8, 10])
+    ap.add_argument("--coarsen", nargs="*", type=int, default=[4, 5, 6, 8, 10, 12])
     args = ap.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
     sa = study_module()
@@ -137,6 +138,10 @@ def main(argv=None) -> int:
         return write_calibration(args.work / "calibration.json")
     if args.phase == "report":
         return report(args.work, args.images)
+    if args.phase == "sample_auto":
+        return sample_auto(sa, args.work)
+    if args.phase == "chart":
+        return chart(sa, args.work)
     out_file = args.work / "heldout.json"
     results = json.loads(out_file.read_text()) if out_file.exists() else {}
     for name in args.images:
@@ -149,7 +154,8 @@ def main(argv=None) -> int:
         print(f"{name}: reference {ref['n_nodes']} nodes, {ref['cpu_s']:.1f} CPU-s "
               f"(this call {time.process_time() - t0:.1f}), load {os.getloadavg()}", flush=True)
         if args.phase in ("sweep", "all"):
-            for c in args.coarsen:
+            shape = read_image(path).shape
+            for c in [c for c in args.coarsen if all(n % c == 0 for n in shape)]:  # blocks that tile the image
                 row = measure(sa, base.replace(solid={"coarsen": c}), ref)
                 entry.setdefault("sweep", {})[str(c)] = row
                 print(f"  coarsen {c}: {row}", flush=True)
@@ -186,7 +192,7 @@ def calibrate(sa, work: Path) -> int:
     base = load_case(STUDY / "case.toml")
     f = work / "calibration.json"
     out = json.loads(f.read_text()) if f.exists() else {}
-    out.update(load=os.getloadavg(), utc=time.strftime("%Y-%m-%d %H:%M", time.gmtime()))
+    out.update(load=os.getloadavg(), utc=time.strftime("%Y-%m-%d %H:%M", time.gmtime()), commit=_git_head())
     times = list(np.arange(1.0, base.drainage.t_end + 1e-9, 1.0))
     res = sa.run_variant(base.replace(name="sample-reference", **SAMPLE_REFERENCE))
     idx = sa.eval_points(res)
@@ -234,6 +240,59 @@ def _sample_data(case) -> dict:
     return {"n_voxels": int(img.phases.size), "n_pore_voxels": n_pore_vox, "pore_chord": lam, "n_pores": n_pores,
             "n_steps": 10, "strain": entry / case.solid.E,
             "n_events": min(n_pores, case.drainage.rate * case.drainage.t_end / pore_vol)}
+
+
+def sample_auto(sa, work: Path) -> int:
+    """``auto`` at the study's tolerances on the sample (in-sample: the calibration's own image), against
+    the calibration's reference (rebuilt; same code), added to ``calibration.json`` as ``auto`` rows."""
+    from porefsi.case import resolve_fidelity
+
+    base = load_case(STUDY / "case.toml")
+    f = work / "calibration.json"
+    cal = json.loads(f.read_text())
+    times = list(np.arange(1.0, base.drainage.t_end + 1e-9, 1.0))
+    res = sa.run_variant(base.replace(name="sample-reference", **SAMPLE_REFERENCE))
+    idx = sa.eval_points(res)
+    ref = {"points": res["points"][idx], "times": np.asarray(times), "u": np.stack([sa.at_time(res, t)[idx]
+                                                                                   for t in times]),
+           **sa.final_scalars(res)}
+    del res
+    rows = {}
+    for tol in sa.AUTO_TOLERANCES:
+        case, choice = resolve_fidelity(base.replace(fidelity={"preset": "auto", "tolerance": tol}))
+        row = _row(sa, sa.run_variant(case), ref, None)
+        row.update(choice.summary())
+        rows[f"auto{tol:g}"] = row
+        print(f"auto {tol}", {k: v for k, v in row.items() if "stage" not in k}, flush=True)
+        cal["auto"] = rows
+        f.write_text(json.dumps(cal, indent=1))
+    return 0
+
+
+def chart(sa, work: Path) -> int:
+    """The study's chart of the calibration runs (current code) with the ``auto`` points: docs/figures."""
+    cal = json.loads((work / "calibration.json").read_text())
+    knobs = {v["name"]: (v["knob"], v["label"]) for v in sa.variants(False)}
+    rows = []
+    for name, r in {**cal["runs"], **cal.get("auto", {})}.items():
+        if r.get("status") != "ok" or name == "coarsen3_static":
+            continue
+        knob, label = knobs.get(name, ("auto" if name.startswith("auto") else "mesh", name))
+        dt = r.get("overrides", {}).get("coupling", {}).get("exchange_dt", 1.0)
+        row = {**r, "name": name, "knob": knob, "label": label, "meets_output_resolution": dt <= 1.0}
+        if name.startswith("auto"):
+            row["expected_err_vs_reference"] = r["fidelity_expected_error_vs_reference"]
+        rows.append(row)
+    ok = [r for r in rows if r["meets_output_resolution"]]
+    for r, m in zip(ok, sa.pareto([r["cpu_s"] for r in ok], [r["err_field"] for r in ok]), strict=True):
+        r["pareto"] = bool(m)
+    for r in rows:
+        r.setdefault("pareto", False)
+    ref = {"case_toml": "coarsen = 3", "n_nodes": cal["runs"]["coarsen3_static"]["n_nodes"]}
+    dest = ROOT / "docs" / "figures" / "fidelity_speed_accuracy.png"
+    sa.plot(rows, ref, dest)
+    print(f"wrote {dest}")
+    return 0
 
 
 def _git_head() -> str:
@@ -291,8 +350,6 @@ def _predict(image, base, c: int) -> tuple[float, float]:
 
 def report(work: Path, images) -> int:
     """Markdown tables of the held-out images: the coarsening sweep and the auto runs, predicted vs achieved."""
-    from porefsi.image.io import read_image
-
     print("| image | run | coarsen | predicted vs ref | achieved | achieved / predicted | CPU s (predicted) |")
     print("|---|---|---:|---:|---:|---:|---:|")
     for name in images:

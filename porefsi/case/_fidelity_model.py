@@ -242,5 +242,6 @@ def expected_cpu(scene: Scene, s: Setting, cal: dict | None = None) -> float:
         steps += scene.n_steps * c["update_per_pore_step"] * scene.n_pores
     fluid = c["fluid_per_event_pore"] * scene.n_events * scene.n_pores
     if s.scheme == "adaptive":
-        fluid = fluid * _interp_log_ca(scene, cal["scheme"]["adaptive"], "fluid_cost_ratio") + c["adaptive_fluid_extra_s"]
+        ratio = _interp_log_ca(scene, cal["scheme"]["adaptive"], "fluid_cost_ratio")
+        fluid = fluid * ratio + c["adaptive_fluid_extra_s"]
     return float(setup + solid + steps + fluid)
