@@ -153,26 +153,22 @@ def sphere_lattice(
     if len(n) != 3 or min(n) < 1:
         raise InputError(f"n must be 3 positive ints (spheres per axis), got {n!r}")
     spacing = _positive_int("spacing", spacing)
-    n_p = int(np.prod(n))
-    R = _per_item(pore_radius, n_p, "pore_radius", 1.0)
+    R = _per_item(pore_radius, int(np.prod(n)), "pore_radius", 1.0)
     grid = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), axis=-1).reshape(-1, 3)
     conns = _lattice_edges(n)
-    n_t = conns.shape[0]
-    r = _per_item(throat_radius, n_t, "throat_radius", 0.5)
+    r = _per_item(throat_radius, conns.shape[0], "throat_radius", 0.5)
     _check_lattice_sizes(R, r, conns, spacing)
-    end = np.zeros(n_p, bool)
-    for ax in range(3):
-        end |= (grid[:, ax] == 0) | (grid[:, ax] == n[ax] - 1)
+    end = np.any((grid == 0) | (grid == np.array(n) - 1), axis=1)  # spheres on the lattice's faces
     margin = _lattice_margin(R[end], margin)
     shape = tuple(2 * margin + spacing * (k - 1) + 1 for k in n)
     cvox = margin + spacing * grid
     phases = np.zeros(shape, np.uint8)
-    for p in range(n_p):
-        _paint_sphere(phases, cvox[p], R[p])
-    for t in range(n_t):
-        _paint_cylinder(phases, cvox[conns[t, 0]], cvox[conns[t, 1]], r[t])
+    for c, rp in zip(cvox, R, strict=True):
+        _paint_sphere(phases, c, rp)
+    for (a, b), rt in zip(conns, r, strict=True):
+        _paint_cylinder(phases, cvox[a], cvox[b], rt)
     img = VoxelImage(phases, voxel_size)
-    lt = spacing - np.sqrt(R[conns[:, 0]] ** 2 - r**2) - np.sqrt(R[conns[:, 1]] ** 2 - r**2)
+    lt = spacing - np.sqrt(R[conns[:, 0]] ** 2 - r**2) - np.sqrt(R[conns[:, 1]] ** 2 - r**2)  # cylinder part
     return SyntheticLattice(
         image=img,
         pore_centres=img.voxel_centres(cvox),

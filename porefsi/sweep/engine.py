@@ -35,8 +35,9 @@ TABLE_FILE = "sweep.csv"
 FIGURE_FILE = "figures/sweep.png"
 #: Seconds to wait for a scheduler given by address or file before giving up.
 CONNECT_TIMEOUT = 20
-#: Environment of LocalCluster workers: one BLAS / OpenMP thread per worker process.
-WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "MPLBACKEND": "Agg",
+#: Environment of LocalCluster workers: one BLAS / OpenMP / numba thread per worker process.
+WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1",
+              "MPLBACKEND": "Agg",
               "PYVISTA_OFF_SCREEN": "true"}
 
 
