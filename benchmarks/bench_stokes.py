@@ -36,7 +36,8 @@ Usage::
 
     python benchmarks/bench_stokes.py --quick            # built-in sample along x only
     python benchmarks/bench_stokes.py --cases sample crops coarse --out results.jsonl
-    python benchmarks/bench_stokes.py --cases full --progress --out full.jsonl   # ~1 h CPU per axis
+    python benchmarks/bench_stokes.py --cases full --progress --out full.jsonl   # ~25 CPU min per axis
+    python benchmarks/bench_stokes.py --cases full --axes x --wall channel --out full_channel.jsonl
     python benchmarks/bench_stokes.py --summarise full.jsonl \
         --case-reference cases/speed_accuracy/reference/berea400_voxel.json
 """
@@ -118,12 +119,15 @@ def case_reference(records, path: Path) -> dict:
     axes solved. An axis not solved is left out (the case then leaves the point out).
     """
     rows = {r["axis"]: r for r in records if r.get("case") == "full" and "k_mD" in r}
+    walls = {r.get("kw", {}).get("wall", "default") for r in rows.values()}
+    if len(walls) > 1:
+        raise SystemExit(f"the 'full' records mix wall closures {sorted(walls)}: pass one closure's file")
     if not rows:
         raise SystemExit("no solved 'full' records to write")
     some = next(iter(rows.values()))
     ref = {"source": "benchmarks/bench_stokes.py --cases full", "image": some["image"],
            "commit": some.get("commit"), "date_utc": some.get("date_utc"),
-           "voxel_size_m": some["voxel_size_m"], "shape": some["shape"],
+           "voxel_size_m": some["voxel_size_m"], "shape": some["shape"], "wall": walls.pop(),
            "k_mD": {a: r["k_mD"] for a, r in rows.items()}, "iterations": {a: r["iterations"] for a, r in rows.items()},
            "residual": {a: r["residual"] for a, r in rows.items()},
            "flux_spread": {a: r["flux_spread"] for a, r in rows.items()},
@@ -160,7 +164,17 @@ def cardwell_parsons(k: dict, axis: int) -> tuple[float, float]:
     return float(lower), float(upper)
 
 
-def specs(cases, image):
+def specs(cases, image, axes="xyz", wall=None):
+    """Every solve of ``cases``; ``axes`` filters the flow axes, ``wall`` sets the closure of each."""
+    for spec in _specs(cases, image):
+        if spec["axis"] not in axes:
+            continue
+        if wall is not None:
+            spec = {**spec, "kw": {**spec.get("kw", {}), "wall": wall}}
+        yield spec
+
+
+def _specs(cases, image):
     for case in cases:
         if case == "sample":
             for ax in "xyz":
@@ -223,6 +237,9 @@ def main(argv=None) -> int:
                              "full", "coarse"])
     ap.add_argument("--image", default=None, help="the 400^3 Berea npz (default: ../shared/data/berea_icl_400.npz)")
     ap.add_argument("--out", default=None, help="append one JSON line per solve to this file")
+    ap.add_argument("--axes", default="xyz", help="flow axes to solve (e.g. x: one heavy solve at a time)")
+    ap.add_argument("--wall", default=None, choices=["ghost", "channel"],
+                    help="tangential wall closure of every solve (default: voxel_permeability's)")
     ap.add_argument("--summarise", default=None, metavar="JSONL", help="only summarise an earlier --out file")
     ap.add_argument("--progress", action="store_true",
                     help="print each solve's set-up time and every 25th MINRES residual (stderr)")
@@ -246,7 +263,7 @@ def main(argv=None) -> int:
     if image is None and any(c in ("crops", "coarse", "centre", "full", "upsample400") for c in cases):
         print("400^3 Berea not found (--image): skipping the cases that need it")
     records = []
-    for spec in specs(cases, image):
+    for spec in specs(cases, image, args.axes, args.wall):
         rec = run(spec, args.progress)
         records.append(rec)
         if args.out:

@@ -44,6 +44,8 @@ from porefsi.stokes import richardson, voxel_permeability  # noqa: E402
 from porefsi.units import MILLIDARCY  # noqa: E402
 
 BEREA_VOXEL = 5.345e-6
+#: The tangential wall closure of every solve (``--wall``; default: voxel_permeability's).
+WALL = [None]
 
 
 def _load() -> str:
@@ -54,6 +56,8 @@ def _levels_of(image, axis, levels, **kw) -> tuple[list, list, float]:
     """k (mD) at each level, and the CPU seconds of all of them."""
     ks, done, c0 = [], [], time.process_time()
     rtol = kw.pop("rtol", 1e-7)
+    if WALL[0] is not None:
+        kw.setdefault("wall", WALL[0])
     for f in levels:
         r = voxel_permeability(image, axis, refine=f, rtol=rtol, maxiter=8000, **kw)
         ks.append(r.k_mD)
@@ -156,8 +160,10 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--image", default=str(ROOT.parent / "shared" / "data" / "berea_icl_400.npz"))
     ap.add_argument("--positions", default="160,160,160;40,40,40;300,60,200;100,300,300")
     ap.add_argument("--axes", default="x")
+    ap.add_argument("--wall", default=None, choices=["channel", "ghost"], help="wall closure of every solve")
     ap.add_argument("--json", default=None, help="write every row to this file")
     args = ap.parse_args(argv)
+    WALL[0] = args.wall
     levels = [int(v) for v in args.levels.split(",")]
     cases = args.cases.split(",")
     rows = []

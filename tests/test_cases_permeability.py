@@ -52,19 +52,22 @@ def test_finest_voxel_solve_is_the_truth_elsewhere(perm):
 
 def test_permeability_smoke(perm, tmp_path):
     before = {p: p.stat().st_mtime_ns for p in CASE.rglob("*") if p.is_file() and "__pycache__" not in p.parts}
-    assert perm.main(["--smoke", "--out", str(tmp_path)]) == 0
+    assert perm.main(["--smoke", "--out", str(tmp_path), "--walls", "channel", "ghost"]) == 0
     after = {p: p.stat().st_mtime_ns for p in CASE.rglob("*") if p.is_file() and "__pycache__" not in p.parts}
     assert after == before  # a smoke run never touches the committed outputs
     saved = json.loads((tmp_path / "results.json").read_text())["permeability"]
     assert saved["smoke"] and saved["dns_mean_mD"] == pytest.approx(1285.6666666666667)
     (st,) = saved["studies"]
     pts = {(p["method"], p["model"], p["coarsen"]): p for p in st["points"]}
-    assert set(pts) == {("network", "shape_factor", 1), ("network", "paper", 1), ("voxel", None, 1), ("voxel", None, 2)}
+    assert set(pts) == {("network", "shape_factor", 1), ("network", "paper", 1), ("voxel", "channel", 1),
+                        ("voxel", "channel", 2), ("voxel", "ghost", 1), ("voxel", "ghost", 2)}
     for p in pts.values():
         assert p["cpu_s"] > 0 and all(np.isfinite(v) and v > 0 for v in p["k_mD"].values())
         assert p["k_mean_mD"] == pytest.approx(np.mean(list(p["k_mD"].values())), rel=1e-12)
-    fine, coarse = pts["voxel", None, 1], pts["voxel", None, 2]
+    fine, coarse = pts["voxel", "channel", 1], pts["voxel", "channel", 2]
     assert fine["is_truth"] and fine["error"] == 0.0 and st["truth_mD"] == pytest.approx(fine["k_mean_mD"])
+    ghost = pts["voxel", "ghost", 1]  # the earlier closure: a point against the same truth, more conductive
+    assert not ghost["is_truth"] and ghost["error"] > 0.05
     assert coarse["voxel_size_m"] == pytest.approx(2 * fine["voxel_size_m"]) and coarse["shape"] == [16, 16, 16]
     # the two conduit models are different models (measured 9544 vs 6421 mD on this corner)
     sf, paper = pts["network", "shape_factor", 1], pts["network", "paper", 1]

@@ -92,3 +92,16 @@ def test_voxel_method_refuses_a_network_file(image_file, tmp_path, capsys):
     assert main(["extract", str(image_file), "--min-radius", "1", "-o", str(net)]) == 0
     capsys.readouterr()
     _fails(capsys, ["permeability", str(net), "--method", "voxel"], "network file", "image")
+
+
+def test_voxel_method_wall_closure(image_file, capsys):
+    """--wall picks the tangential closure; each matches the API, and they differ on this image."""
+    ks = {}
+    for wall in ("ghost", "channel"):
+        assert main(["permeability", str(image_file), "--method", "voxel", "--wall", wall, "--json"]) == 0
+        s = _json(capsys)
+        assert s["wall"] == wall
+        ks[wall] = s["permeability_m2"]
+        assert ks[wall] == pytest.approx(voxel_permeability(VoxelImage(_image(), VS), "x", wall=wall).k_m2, rel=1e-5)
+    assert ks["channel"] < 0.95 * ks["ghost"]
+    _fails(capsys, ["permeability", str(image_file), "--wall", "ghost"], "--wall", "--method voxel")

@@ -7,7 +7,8 @@ rock on the chart: the single-phase permeability of Berea images by
   ``porefsi.flow.absolute_permeability`` along x, y and z) with each conduit model,
   ``"shape_factor"`` (the default) and ``"paper"``;
 - the voxel Stokes solver (``porefsi.stokes.voxel_permeability``) on the image coarsened 1, 2, 3,
-  4 times (``porefsi.image.downsample``);
+  4 times (``porefsi.image.downsample``), with each tangential wall closure asked for (``--walls``:
+  ``channel``, the default, and/or ``ghost``, the earlier reflection scheme);
 
 each against its CPU time (``time.process_time`` of this process, BLAS and numba on one thread,
 numba compiled beforehand; network: one extraction plus three solves; voxel: coarsening plus
@@ -31,14 +32,14 @@ Outputs: ``figures/permeability_speed_accuracy.png`` and the ``"permeability"`` 
 ``results.json`` (the coupled study's entries are kept).
 
 Usage: ``python cases/speed_accuracy/permeability.py [--smoke] [--out DIR] [--image BEREA400.npz]
-[--images sample crop200 berea400] [--full-resolution]``.
+[--images sample crop200 berea400] [--walls channel ghost] [--full-resolution]``.
 """
 
 from __future__ import annotations
 
 import os
 
-for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # numba: see cases/_common.py
     os.environ.setdefault(_v, "1")  # before numpy/numba load: single-thread CPU time is comparable
 
 import json  # noqa: E402
@@ -66,6 +67,9 @@ BEREA400 = [REPO.parent / "shared" / "data" / "berea_icl_400.npz",
 DNS_MD = {"x": 1360.0, "y": 1304.0, "z": 1193.0}
 DNS_MEAN_MD = float(np.mean(list(DNS_MD.values())))
 MODELS = ("shape_factor", "paper")
+#: Tangential wall closures of the voxel solver (porefsi.stokes.StokesOptions.wall); the first is the truth
+#: of the "finest voxel solve" images.
+WALLS = ("channel", "ghost")
 AXES3 = ("x", "y", "z")
 
 
@@ -96,15 +100,18 @@ def images(smoke: bool, which, berea400: Path | None):
             yield "berea400", big, "published DNS", (1, 2, 3, 4)
 
 
-def voxel_point(image: VoxelImage, factor: int) -> dict:
-    """Voxel-solver permeability of ``image`` coarsened ``factor`` times, x, y, z, with its CPU time."""
+def voxel_point(image: VoxelImage, factor: int, wall: str = WALLS[0]) -> dict:
+    """Voxel-solver permeability of ``image`` coarsened ``factor`` times, x, y, z, with its CPU time.
+
+    ``wall`` is the tangential wall closure; it is the row's ``model``.
+    """
     c0, t0 = time.process_time(), time.perf_counter()
     work = downsample(image, factor) if factor > 1 else image
     k, its, conv = {}, {}, True
     for ax in AXES3:
-        r = voxel_permeability(work, ax)
+        r = voxel_permeability(work, ax, wall=wall)
         k[ax], its[ax], conv = r.k_mD, r.iterations, conv and r.converged
-    return {"method": "voxel", "model": None, "coarsen": factor, "voxel_size_m": work.voxel_size,
+    return {"method": "voxel", "model": wall, "coarsen": factor, "voxel_size_m": work.voxel_size,
             "shape": list(work.shape), "k_mD": k, "iterations": its, "converged": conv,
             "cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - t0}
 
@@ -140,7 +147,7 @@ def cached_full_resolution(path: Path = FULL_FILE) -> dict | None:
         print(f"{path}: not all three axes solved ({sorted(d.get('k_mD', {}))}): full resolution left out",
               flush=True)
         return None
-    return {"method": "voxel", "model": None, "coarsen": 1, **{k: d[k] for k in (
+    return {"method": "voxel", "model": d.get("wall", "ghost"), "coarsen": 1, **{k: d[k] for k in (
         "voxel_size_m", "shape", "k_mD", "iterations", "converged", "cpu_s", "wall_s")},
         "cached": {k: d.get(k) for k in ("source", "commit", "date_utc", "load")}}
 
@@ -155,18 +162,27 @@ def score(rows: list[dict], truth_kind: str) -> float | None:
     if truth_kind == "published DNS":
         truth = DNS_MEAN_MD
     else:
-        finest = [r for r in rows if r["method"] == "voxel" and r["coarsen"] == 1]
+        finest = sorted((r for r in rows if r["method"] == "voxel" and r["coarsen"] == 1),
+                        key=lambda r: _wall_rank(r["model"]))
         truth = finest[0]["k_mean_mD"] if finest else None
     for r in rows:
         r["truth_kind"], r["truth_mD"] = truth_kind, truth
         r["error"] = None if truth is None else r["k_mean_mD"] / truth - 1.0
-        r["is_truth"] = truth_kind != "published DNS" and r["method"] == "voxel" and r["coarsen"] == 1
+        r["is_truth"] = bool(truth_kind != "published DNS" and finest and r is finest[0])
     return truth
 
 
+def _wall_rank(wall) -> int:
+    """Order of a voxel row's closure (None: a row from before the closures were options, the ghost one)."""
+    wall = "ghost" if wall is None else wall
+    return WALLS.index(wall) if wall in WALLS else len(WALLS)
+
+
 def label(r: dict) -> str:
-    """Short name of a point: ``voxel /2`` or ``network shape_factor``."""
-    return f"voxel /{r['coarsen']}" if r["method"] == "voxel" else f"network {r['model']}"
+    """Short name of a point: ``voxel /2`` (channel closure), ``ghost /2`` or ``network shape_factor``."""
+    if r["method"] == "voxel":
+        return f"{'voxel' if r['model'] == WALLS[0] else 'ghost'} /{r['coarsen']}"
+    return f"network {r['model']}"
 
 
 def plot(studies: list[dict], path: Path) -> None:
@@ -174,7 +190,8 @@ def plot(studies: list[dict], path: Path) -> None:
     with each image's truth as a line. One colour per image, one marker per method."""
     plt = pyplot()
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(13.0, 5.6))
-    marks = {("voxel", None): "o", ("network", "shape_factor"): "s", ("network", "paper"): "^"}
+    marks = {("voxel", "channel"): "o", ("voxel", "ghost"): "D", ("voxel", None): "D", ("network", "shape_factor"): "s",
+             ("network", "paper"): "^"}
     colours = ["tab:blue", "tab:orange", "tab:green", "tab:red"]
     floor = 2e-3
     for st, col in zip(studies, colours, strict=False):
@@ -189,11 +206,14 @@ def plot(studies: list[dict], path: Path) -> None:
             face = col if r["error"] >= 0 else "white"
             ax.scatter(r["cpu_s"], e, marker=mark, s=60, color=face, edgecolor=col, zorder=3)
             ax.annotate(txt, (r["cpu_s"], e), fontsize=7, xytext=(4, 3), textcoords="offset points")
-        vox = sorted((r for r in st["points"] if r["method"] == "voxel" and r["error"] is not None
-                      and not r["is_truth"]), key=lambda r: r["cpu_s"])
         name = f"{st['image']} ({st['shape'][0]}^3)"
-        ax.plot([r["cpu_s"] for r in vox], [max(abs(r["error"]), floor) for r in vox], color=col, lw=1,
-                label=f"{name}: vs {st['truth_kind']}, {st['truth_mD']:.0f} mD" if st["truth_mD"] else name)
+        for wall, ls in (("channel", "-"), ("ghost", ":")):
+            vox = sorted((r for r in st["points"] if r["method"] == "voxel" and r["error"] is not None
+                          and not r["is_truth"] and (r["model"] or "ghost") == wall), key=lambda r: r["cpu_s"])
+            if vox:
+                tag = f"{name}, {wall}: vs {st['truth_kind']}"
+                ax.plot([r["cpu_s"] for r in vox], [max(abs(r["error"]), floor) for r in vox], color=col, lw=1,
+                        ls=ls, label=f"{tag}, {st['truth_mD']:.0f} mD" if st["truth_mD"] else tag)
         if st["truth_mD"]:
             bx.axhline(st["truth_mD"], color=col, ls=":" if st["truth_kind"] != "published DNS" else "--", lw=1,
                        label=f"{name}: {st['truth_kind']} {st['truth_mD']:.0f} mD")
@@ -207,8 +227,8 @@ def plot(studies: list[dict], path: Path) -> None:
         a.legend(fontsize=7, loc="best")
     ax.set_ylabel("|k mean / truth - 1|  (filled: above the truth, open: below)")
     bx.set_ylabel("k, mean of x, y, z (mD)")
-    ax.set_title("error: network (square shape_factor, triangle paper), voxel Stokes (circle, /coarsening)",
-                 fontsize=9)
+    ax.set_title("error: network (square shape_factor, triangle paper), voxel Stokes /coarsening (circle "
+                 "channel closure, diamond ghost)", fontsize=9)
     bx.set_title("permeability; dashed: published DNS, dotted: finest voxel solve (a convergence check)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -249,9 +269,10 @@ def _replot(out: Path) -> int:
     studies = saved["permeability"]["studies"]
     for st in studies:
         if st["image"] == "berea400":
-            st["points"] = [r for r in st["points"] if not (r["method"] == "voxel" and r["coarsen"] == 1)]
             cached = cached_full_resolution()
             if cached is not None:
+                st["points"] = [r for r in st["points"] if not (r["method"] == "voxel" and r["coarsen"] == 1
+                                                                and (r["model"] or "ghost") == cached["model"])]
                 st["points"].append(cached)
         st["truth_mD"] = score(st["points"], st["truth_kind"])
     write_results(out / "results.json", saved)
@@ -264,6 +285,8 @@ def _arguments(p) -> None:
     p.add_argument("--image", type=Path, default=None, help="the 400^3 Berea npz (default: ../shared/data/)")
     p.add_argument("--images", nargs="+", default=["sample", "crop200", "berea400"],
                    choices=["sample", "crop200", "berea400"], help="which images to study")
+    p.add_argument("--walls", nargs="+", default=[WALLS[0]], choices=list(WALLS),
+                   help="voxel solver wall closures to chart (default: channel)")
     p.add_argument("--replot", action="store_true",
                    help="no solves: re-read results.json (and reference/berea400_voxel.json for the whole 400^3 "
                         "at full resolution), re-score, redraw the chart and table")
@@ -290,8 +313,10 @@ def main(argv=None) -> int:
                 if cached is not None:
                     points.append(cached)
                 continue
-            points.append(voxel_point(img, f))
-            print(f"{name} voxel /{f}: {points[-1]['k_mD']} mD, {points[-1]['cpu_s']:.1f} s CPU", flush=True)
+            for wall in args.walls:
+                points.append(voxel_point(img, f, wall))
+                print(f"{name} voxel {wall} /{f}: {points[-1]['k_mD']} mD, {points[-1]['cpu_s']:.1f} s CPU",
+                      flush=True)
         truth = score(points, truth_kind)
         studies.append({"image": name, "shape": list(img.shape), "voxel_size_m": img.voxel_size,
                         "porosity": img.porosity, "truth_kind": truth_kind, "truth_mD": truth, "points": points,

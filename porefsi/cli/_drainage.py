@@ -221,7 +221,9 @@ def _progress(t_end: float, saved: bool = True):
     """A callback printing one progress line on stderr (after a checkpoint, or periodically)."""
     def report(sim, seconds):
         st = sim._engine
-        print(f"drainage: t = {st.t:.4g} / {t_end:g} s, Sw = {st.sw():.4f}, P_in = {_last_inlet_pressure(st):.5g} Pa, "
+        p_in = _last_inlet_pressure(st)
+        p_txt = f"{p_in:.5g} Pa" if np.isfinite(p_in) else "- (no pressure solve yet)"
+        print(f"drainage: t = {st.t:.4g} / {t_end:g} s, Sw = {st.sw():.4f}, P_in = {p_txt}, "
               f"{st.n_events} events, {st.n_fills} pores full, {seconds:.0f} s wall"
               f"{' (checkpoint saved)' if saved else ''}", file=sys.stderr, flush=True)
     return report

@@ -32,7 +32,7 @@ DEFAULT_HOPS = 3
 DEFAULT_LOCAL_MENISCI = 8
 DEFAULT_TIE_TOLERANCE = 1.0
 #: Capillary number (on the inlet face) above which ``tie_tolerance`` is not applied: the rigorous
-#: certificate only. Measured (docs/stability.md, section e): at Ca = 1e-5 a tolerance of 1 put the
+#: certificate only. Measured (docs/stability.md, section f): at Ca = 1e-5 a tolerance of 1 put the
 #: breakthrough time of a 1200-pore lattice 4.7 % off; at 1e-6 and below every run stayed within 0.3 %.
 TIE_MAX_CA = 1e-6
 #: Above this many pores the adaptive scheme's ``solver="auto"`` is ``"split"`` (AMG-CG on the

@@ -3,9 +3,10 @@
 Depends only on :mod:`porefsi.image`, :mod:`porefsi.errors` and :mod:`porefsi.units`.
 """
 
-from porefsi.stokes.permeability import StokesResult, plane_fluxes, voxel_permeability
+from porefsi.stokes.permeability import StokesOptions, StokesResult, plane_fluxes, stokes_options, voxel_permeability
 from porefsi.stokes.refine import ExtrapolatedPermeability, Extrapolation, extrapolated_permeability, richardson
 from porefsi.units import MILLIDARCY
 
-__all__ = ["voxel_permeability", "StokesResult", "plane_fluxes", "MILLIDARCY", "extrapolated_permeability",
+__all__ = ["voxel_permeability", "StokesOptions", "stokes_options", "StokesResult", "plane_fluxes", "MILLIDARCY",
+           "extrapolated_permeability",
            "ExtrapolatedPermeability", "Extrapolation", "richardson"]

@@ -28,9 +28,28 @@ the wall is:
 * along :math:`d` (normal direction): the neighbour face is a wall face, a whole voxel away:
   :math:`u = 0` there, diagonal :math:`+1`;
 * across (tangential direction) with *both* voxels of the neighbour face solid: a wall parallel to
-  the flow half a voxel away; ghost reflection :math:`u_{\mathrm{ghost}} = -u_f`, diagonal :math:`+2`;
-* across with *one* voxel of the neighbour face solid: that face is the face of a solid voxel, so
-  the no-slip point lies exactly on it, a whole voxel away: :math:`u = 0` there, diagonal :math:`+1`.
+  the flow half a voxel away, diagonal :math:`+c`, with the closure ``wall``:
+
+  - ``"ghost"``: ghost reflection :math:`u_{\mathrm{ghost}} = -u_f`, :math:`c = 2`. The face value
+    is read as a point value; plane Poiseuille between walls :math:`N` voxels apart comes out as the
+    parabola plus a uniform slip :math:`G h^2/8`, a flux :math:`1 + 2/N^2` times the exact one
+    (3x at :math:`N = 1`, 1.5x at 2);
+  - ``"channel"``: :math:`c(N) = 6N/(3N - 2)` (6, 3, 2.57, ... :math:`\to 2`) with :math:`N` the
+    number of open faces in the line of faces along the wall normal, between the closed faces
+    that end it. The face values are read as cell averages over the control volumes: plane
+    Poiseuille :math:`u = G y (H - y)/2` (:math:`h = \mu = 1`, :math:`H = N`) has averages
+    :math:`\bar u_0 = (3N-2)/12` and :math:`\bar u_1 = (9N-14)/12` in the two cells next to a
+    wall; the wall-cell equation :math:`(\bar u_0 - \bar u_1) + c\,\bar u_0 = G` holds exactly
+    iff :math:`c = 6N/(3N-2)`, and the interior equations hold exactly for any quadratic, so the
+    discrete flux equals the exact :math:`N^3 G/12` for every :math:`N` (at :math:`N = 1` the
+    single cell has both walls: :math:`2c\,\bar u_0 = G`, the same :math:`c = 6`). Still a diagonal
+    term, so :math:`A` stays symmetric positive definite;
+* across with *one* voxel of the neighbour face solid (a step of the wall along :math:`d`): that
+  face is the face of a solid voxel, so :math:`u = 0` on it, a whole voxel away. ``"ghost"``:
+  diagonal :math:`+1` (that point value alone). ``"channel"``: :math:`+(1 + c(N))/2`. The side of
+  the face's control volume toward that neighbour is half wall (the half over the solid voxel,
+  shear :math:`c(N)\,u_f` as for a whole wall) and half fluid (the half over the pore voxel, shear
+  :math:`(u_f - 0)/h` toward the closed face); each half weighs 1/2.
 
 On an open box face (pressure boundary) the control volume is the half voxel inside the box:
 tangential terms weigh 1/2 (their walls are those of the image voxel the half volume lies in),
@@ -70,8 +89,8 @@ class StaggeredSystem:
         Face planes per axis: ``N_d`` if periodic, ``N_d + 1`` if bounded.
     offsets : ndarray of int64, shape (4,)
         Start of each velocity component in the velocity vector; ``offsets[3]`` = n_u.
-    diag : ndarray of float32, shape (n_u,)
-        Diagonal of the velocity block (links plus wall terms; sums of 1/2, 1 and 2, exact in float32).
+    diag : ndarray of float64, shape (n_u,)
+        Diagonal of the velocity block (links plus wall terms).
     half : ndarray of uint8, shape (n_u,)
         1 for faces on an open box face (half control volume: tangential links weigh 1/2).
     p_lo, p_hi : ndarray of int32, shape (n_u,)
@@ -82,6 +101,8 @@ class StaggeredSystem:
     open_axis : int or None
     drive : tuple of (int or None, float, float, float)
         ``(body_axis, body_force, p_in, p_out)``.
+    wall : str
+        Tangential wall closure, ``"ghost"`` or ``"channel"`` (see the module notes).
     neighbours : ndarray of int32, shape (n_u, 6), or None
         Neighbour face ids (slots: normal before/after, then the two other axes), -1 = none;
         None until :func:`with_neighbours` (built last: the pressure preconditioner does not need it).
@@ -98,6 +119,7 @@ class StaggeredSystem:
     periodic: tuple
     open_axis: int | None
     drive: tuple
+    wall: str = "ghost"
     neighbours: np.ndarray | None = None
 
     @property
@@ -142,6 +164,13 @@ class StaggeredSystem:
         return rhs
 
     @property
+    def tables(self) -> tuple:
+        """``(neighbours, diag, half, p_lo, p_hi)``: what the operator kernels of :mod:`._kernels` take."""
+        if self.neighbours is None:
+            raise ValueError("build the neighbour table first (porefsi.stokes._grid.with_neighbours)")
+        return (self.neighbours, self.diag, self.half, self.p_lo, self.p_hi)
+
+    @property
     def nbytes(self) -> int:
         """Bytes held by the tables."""
         arrays = [self.pore, self.diag, self.half, self.p_lo, self.p_hi, self.pressure_cell]
@@ -150,13 +179,17 @@ class StaggeredSystem:
         return int(sum(a.nbytes for a in arrays))
 
 
+#: Tangential wall closures (module notes) and their kernel codes.
+WALLS = {"ghost": kern.WALL_GHOST, "channel": kern.WALL_CHANNEL}
+
+
 def _oa(open_axis):
     return -1 if open_axis is None else int(open_axis)
 
 
 def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int | None = None,
-             body_axis: int | None = None, body_force: float = 0.0,
-             p_in: float = 1.0, p_out: float = 0.0, neighbours: bool = True) -> StaggeredSystem:
+             body_axis: int | None = None, body_force: float = 0.0, pressures=(1.0, 0.0),
+             wall: str = "ghost", neighbours: bool = True) -> StaggeredSystem:
     r"""Build the MAC Stokes system on ``pore`` (voxel units, :math:`\mu = 1`).
 
     Parameters
@@ -170,8 +203,12 @@ def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int
     body_axis : int or None
         Axis of the body force density ``body_force`` (per unit volume); only without ``open_axis``
         (every control volume is then a whole voxel).
-    body_force, p_in, p_out : float
-        Driving terms, voxel units.
+    body_force : float
+        Body force density, voxel units.
+    pressures : (float, float)
+        Reservoir pressures ``(p_in, p_out)`` at plane 0 and the last plane of ``open_axis``.
+    wall : {'ghost', 'channel'}
+        Tangential wall closure (module notes).
     neighbours : bool, default True
         Also build the neighbour table (else call :func:`with_neighbours` later).
 
@@ -180,7 +217,10 @@ def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int
     StaggeredSystem
     """
     if body_force and open_axis is not None:
-        raise ValueError("a body force drives periodic flow only; with an open axis use p_in and p_out")
+        raise ValueError("a body force drives periodic flow only; with an open axis use pressures")
+    if wall not in WALLS:
+        raise ValueError(f"unknown wall closure {wall!r}; use one of {tuple(WALLS)}")
+    p_in, p_out = pressures
     pore = np.ascontiguousarray(pore, dtype=bool)
     shape = pore.shape
     periodic = tuple(bool(x) for x in periodic)
@@ -192,12 +232,12 @@ def assemble(pore: np.ndarray, *, periodic=(False, False, False), open_axis: int
     counts = [kern.number_faces(pore, d, n_planes[d], periodic, oa, 0)[1] for d in range(3)]
     offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     n_u = int(offsets[3])
-    diag = np.empty(n_u, dtype=np.float32)  # exact: sums of 1/2, 1 and 2
+    diag = np.empty(n_u, dtype=np.float64)
     half = np.empty(n_u, dtype=np.uint8)
     plo = np.empty(n_u, dtype=np.int32)
     phi = np.empty(n_u, dtype=np.int32)
     system = StaggeredSystem(pore, n_planes, offsets, diag, half, plo, phi, pressure_cell, periodic, open_axis,
-                             (body_axis, float(body_force), float(p_in), float(p_out)))
+                             (body_axis, float(body_force), float(p_in), float(p_out)), wall)
     _fill(system, None)
     return with_neighbours(system) if neighbours else system
 
@@ -213,10 +253,9 @@ def _fill(system: StaggeredSystem, nb) -> None:
     """Run the table kernel per axis: coupling tables (``nb`` None) or the neighbour table."""
     pid = np.full(system.shape, -1, dtype=np.int32)
     pid.reshape(-1)[system.pressure_cell] = np.arange(system.n_p, dtype=np.int32)
-    want = nb is not None
-    table = nb if want else np.empty((1, 6), dtype=np.int32)
+    table = nb if nb is not None and nb.shape[0] == system.n_u else np.empty((0, 6), dtype=np.int32)
+    out = (table, system.diag, system.half, system.p_lo, system.p_hi)
     oa = _oa(system.open_axis)
     for d in range(3):
         fid, _ = kern.number_faces(system.pore, d, system.n_planes[d], system.periodic, oa, int(system.offsets[d]))
-        kern.face_tables(system.pore, pid, fid, d, system.periodic, oa, table, system.diag, system.half,
-                         system.p_lo, system.p_hi, want)
+        kern.face_tables(system.pore, pid, fid, d, system.periodic, oa, out, WALLS[system.wall])

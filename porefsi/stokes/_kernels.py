@@ -21,6 +21,8 @@ from porefsi._numba import jit
 
 #: Ghost-reflection weight of a tangential wall half a voxel away (u_ghost = -u).
 GHOST_WALL = 2.0
+#: Tangential wall closures (:func:`wall_weight`): ghost reflection, or exact cell-averaged channel flow.
+WALL_GHOST, WALL_CHANNEL = 0, 1
 #: Weight of a no-slip point a whole voxel away (u = 0 there).
 POINT_WALL = 1.0
 
@@ -80,18 +82,55 @@ def number_faces(pore, d, n_planes, periodic, open_axis, offset):
 
 
 @jit
-def face_tables(pore, pid, fid, d, periodic, open_axis, nb, diag, half, plo, phi, want_nb):
+def wall_weight(n, wall):
+    """Diagonal weight of a tangential wall half a voxel away, for a run of ``n`` open faces.
+
+    ``wall`` 0 (ghost): :data:`GHOST_WALL`. ``wall`` 1 (channel): ``6 n / (3 n - 2)``, the weight
+    that makes the face values the cell averages of plane Poiseuille flow between two such walls
+    ``n`` voxels apart (6, 3, 2.57, ... -> 2; derivation in :mod:`porefsi.stokes._grid`).
+    """
+    if wall == WALL_GHOST:
+        return GHOST_WALL
+    return 6.0 * n / (3.0 * n - 2.0)
+
+
+@jit
+def run_length(fid, c, e, periodic_e):
+    """Open faces in the line along axis ``e`` through face ``c`` (itself included) up to the first closed face.
+
+    Stops at a bounded box face; wraps on a periodic axis (at most the axis length).
+    """
+    lim = fid.shape[e]
+    n = 1
+    for step in (-1, 1):
+        q = [c[0], c[1], c[2]]
+        for _ in range(lim - 1):
+            q[e] += step
+            if not 0 <= q[e] < lim:
+                if not periodic_e:
+                    break
+                q[e] %= lim
+            if fid[q[0], q[1], q[2]] < 0:
+                break
+            n += 1
+    return min(n, lim)
+
+
+@jit
+def face_tables(pore, pid, fid, d, periodic, open_axis, out, wall):
     """Fill the stencil tables of the open faces of axis ``d`` (ids from ``fid``; arrays global-indexed).
 
-    nb : (n_u, 6) int32 (written only if ``want_nb``), diag : (n_u,) float32, half : (n_u,) uint8
-    (1 = half control volume on an open box face), plo/phi : (n_u,) int32 pressure ids of the voxels
-    before/after (-1 = reservoir). Two passes (coupling first, neighbours later) let the pressure
-    preconditioner be built before the neighbour table exists (lower peak memory).
+    ``out`` = (nb, diag, half, plo, phi): nb (n_u, 6) int32 (written only if it has n_u rows),
+    diag (n_u,) float64, half (n_u,) uint8 (1 = half control volume on an open box face),
+    plo/phi (n_u,) int32 pressure ids of the voxels before/after (-1 = reservoir). Two passes
+    (coupling first with a one-row ``nb``, neighbours later) let the pressure preconditioner be
+    built before the neighbour table exists (lower peak memory). ``wall``: :data:`WALL_GHOST` or
+    :data:`WALL_CHANNEL` (:func:`wall_weight`).
     """
+    nb, diag, half, plo, phi = out
+    want_nb = nb.shape[0] == diag.shape[0]
     n_planes = fid.shape[d]
-    t1 = 0 if d != 0 else 1
-    t2 = 2 if d != 2 else 1
-    axes = (d, t1, t2)
+    axes = (d, 0 if d != 0 else 1, 2 if d != 2 else 1)
     for i in range(fid.shape[0]):
         for j in range(fid.shape[1]):
             for k in range(fid.shape[2]):
@@ -100,45 +139,60 @@ def face_tables(pore, pid, fid, d, periodic, open_axis, nb, diag, half, plo, phi
                     continue
                 c = (i, j, k)
                 boundary = open_axis == d and (c[d] == 0 or c[d] == n_planes - 1)
-                w_t = 0.5 if boundary else 1.0
                 half[f] = 1 if boundary else 0
                 dg = 0.0
                 for s in range(6):
-                    e = axes[s // 2]
-                    q = [i, j, k]
-                    q[e] += -1 if s % 2 == 0 else 1
+                    g, term = _neighbour(pore, fid, c, d, axes[s // 2], s % 2, (periodic, open_axis), wall)
                     if want_nb:
-                        nb[f, s] = -1
-                    lim = fid.shape[e]
-                    w = 1.0 if e == d else w_t
-                    if not 0 <= q[e] < lim:
-                        if periodic[e]:
-                            q[e] %= lim
-                        elif e == open_axis:
-                            continue  # beyond an open box face: no term
-                        else:
-                            dg += w * GHOST_WALL  # beyond a side wall: both voxels of that face are solid
-                            continue
-                    g = fid[q[0], q[1], q[2]]
-                    if g == f:
-                        continue  # periodic axis one voxel long: the face is its own neighbour, no net term
-                    if g >= 0:
-                        if want_nb:
-                            nb[f, s] = g
-                        dg += w
-                    elif e == d:
-                        dg += w * POINT_WALL  # a wall face a whole voxel away
-                    else:
-                        lo = [q[0], q[1], q[2]]
-                        lo[d] -= 1
-                        solid = 2 - _voxel(pore, q[0], q[1], q[2], periodic, open_axis) - _voxel(
-                            pore, lo[0], lo[1], lo[2], periodic, open_axis)
-                        dg += w * (GHOST_WALL if solid == 2 else POINT_WALL)
+                        nb[f, s] = g
+                    dg += term * (1.0 if (s < 2 or not boundary) else 0.5)
                 diag[f] = dg
                 lo = [i, j, k]
                 lo[d] -= 1
                 plo[f] = _pressure_id(pid, lo, periodic)
                 phi[f] = _pressure_id(pid, c, periodic)
+
+
+@jit
+def _neighbour(pore, fid, c, d, e, after, bc, wall):
+    """(neighbour face id or -1, unweighted diagonal term) of face ``c`` of axis ``d`` along ``e``.
+
+    ``after``: the neighbour after (1) or before (0) along ``e``; ``bc`` = (periodic, open_axis).
+    """
+    periodic, open_axis = bc
+    q = [c[0], c[1], c[2]]
+    q[e] += 1 if after else -1
+    lim = fid.shape[e]
+    if not 0 <= q[e] < lim:
+        if periodic[e]:
+            q[e] %= lim
+        elif e == open_axis:
+            return -1, 0.0  # beyond an open box face: no term
+        else:  # beyond a side wall: both voxels of that face are solid
+            return -1, _wall_term(fid, c, e, periodic[e], wall)
+    g = fid[q[0], q[1], q[2]]
+    if g == fid[c[0], c[1], c[2]]:
+        return -1, 0.0  # periodic axis one voxel long: the face is its own neighbour, no net term
+    if g >= 0:
+        return g, 1.0
+    if e == d:
+        return -1, POINT_WALL  # a wall face a whole voxel away
+    lo = [q[0], q[1], q[2]]
+    lo[d] -= 1
+    solid = 2 - _voxel(pore, q[0], q[1], q[2], periodic, open_axis) - _voxel(pore, lo[0], lo[1], lo[2], periodic,
+                                                                             open_axis)
+    if solid == 2:
+        return -1, _wall_term(fid, c, e, periodic[e], wall)
+    if wall == WALL_CHANNEL:  # half the control volume's side is wall, half faces the closed face's u = 0
+        return -1, 0.5 * (POINT_WALL + _wall_term(fid, c, e, periodic[e], wall))
+    return -1, POINT_WALL
+
+
+@jit
+def _wall_term(fid, c, e, periodic_e, wall):
+    if wall == WALL_GHOST:
+        return GHOST_WALL
+    return wall_weight(run_length(fid, c, e, periodic_e), wall)
 
 
 @jit
@@ -168,8 +222,12 @@ def _row(nb, diag, half, x, f):
 
 
 @jit
-def stokes_matvec(nb, diag, half, plo, phi, x, n_u, out):
-    """Write K x into ``out``, K = [[A, -B^T], [-B, 0]] (x and out of length n_u + n_p)."""
+def stokes_matvec(tables, x, n_u, out):
+    """Write K x into ``out``, K = [[A, -B^T], [-B, 0]] (x and out of length n_u + n_p).
+
+    ``tables`` = (nb, diag, half, plo, phi), as :func:`face_tables` fills them.
+    """
+    nb, diag, half, plo, phi = tables
     out[n_u:] = 0.0
     for f in range(n_u):
         acc = _row(nb, diag, half, x, f)
@@ -185,8 +243,9 @@ def stokes_matvec(nb, diag, half, plo, phi, x, n_u, out):
 
 
 @jit
-def lanczos_step(nb, diag, half, plo, phi, z, n_u, v, v_old, c_v, c_old):
+def lanczos_step(tables, z, n_u, v, v_old, c_v, c_old):
     """v_old <- K z - c_v v - c_old v_old in place (the next Lanczos vector); returns z . K z."""
+    nb, diag, half, plo, phi = tables
     n = z.shape[0]
     kz_p = np.zeros(n - n_u)
     delta = 0.0
@@ -208,8 +267,9 @@ def lanczos_step(nb, diag, half, plo, phi, z, n_u, v, v_old, c_v, c_old):
 
 
 @jit
-def lanczos_delta(nb, diag, half, plo, phi, z, n_u):
+def lanczos_delta(tables, z, n_u):
     """Return z . K z without storing K z."""
+    nb, diag, half, plo, phi = tables
     n = z.shape[0]
     kz_p = np.zeros(n - n_u)
     delta = 0.0

@@ -101,10 +101,8 @@ def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000, p
     t0 = time.perf_counter()
     n_u = system.n_u
     prec_s = pressure_preconditioner(system) if preconditioner is None else preconditioner
-    if system.neighbours is None:
-        raise ValueError("build the neighbour table first (porefsi.stokes._grid.with_neighbours)")
+    tables = system.tables
     mem = system.nbytes + prec_s.nbytes + N_VECTORS * 8 * (n_u + system.n_p)  # + pyamg's temporaries
-    tables = (system.neighbours, system.diag, system.half, system.p_lo, system.p_hi)
 
     def precvec(v, out):
         kern.symmetric_gauss_seidel(system.neighbours, system.diag, system.half, v, out, n_u)
@@ -118,7 +116,7 @@ def solve(system: StaggeredSystem, *, rtol: float = 1e-6, maxiter: int = 3000, p
     x, its, ok, hist = minres(tables, n_u, precvec, _rhs(system), rtol=rtol, maxiter=maxiter, monitor=monitor)
     t2 = time.perf_counter()
     r = np.empty_like(x)
-    kern.stokes_matvec(*tables, x, n_u, r)
+    kern.stokes_matvec(tables, x, n_u, r)
     rhs = system.rhs_u()
     r[:n_u] -= rhs
     res = float(np.linalg.norm(r) / np.linalg.norm(rhs))
@@ -157,8 +155,8 @@ def minres(tables, n_u, precvec, b, *, rtol, maxiter, monitor=None):
     hist = []
     for it in range(1, maxiter + 1):
         z /= gamma
-        delta = kern.lanczos_delta(*tables, z, n_u)
-        kern.lanczos_step(*tables, z, n_u, v, v_old, delta / gamma, gamma / gamma_old)  # v_old <- v_new
+        delta = kern.lanczos_delta(tables, z, n_u)
+        kern.lanczos_step(tables, z, n_u, v, v_old, delta / gamma, gamma / gamma_old)  # v_old <- v_new
         v, v_old = v_old, v
         precvec(v, z_new)
         gamma_new = float(np.sqrt(max(kern.dot(z_new, v), 0.0)))

@@ -39,16 +39,21 @@ import numpy as np
 from porefsi.errors import ConvergenceError, InputError
 from porefsi.image.voxel_image import AXES, VoxelImage, axis_index
 from porefsi.stokes._domain import flowing_clusters, mirrored, with_buffers
+from porefsi.stokes._grid import WALLS as _WALLS
 from porefsi.stokes._grid import StaggeredSystem, assemble, with_neighbours
 from porefsi.stokes._refine_grid import check_refine, check_refined_memory, upsample_mask
 from porefsi.stokes._solve import log as _solve_log
 from porefsi.stokes._solve import pressure_preconditioner, solve
 from porefsi.units import MILLIDARCY
 
-__all__ = ["StokesResult", "voxel_permeability", "plane_fluxes"]
+__all__ = ["StokesResult", "StokesOptions", "stokes_options", "voxel_permeability", "plane_fluxes"]
 
 BOUNDARIES = ("pressure", "periodic")
 LATERALS = ("wall", "periodic")
+#: Tangential wall closures (:mod:`porefsi.stokes._grid`).
+WALLS = tuple(_WALLS)
+#: The closure :func:`voxel_permeability` uses unless told.
+DEFAULT_WALL = "channel"
 #: The true relative residual may exceed rtol (MINRES stops on the preconditioned one) by at most
 #: this factor; measured 1.0-1.3 on every image in docs/stokes.md.
 TRUE_RESIDUAL_FACTOR = 100.0
@@ -131,37 +136,12 @@ def plane_fluxes(system: StaggeredSystem, u: np.ndarray, axis: int) -> np.ndarra
                        minlength=system.n_planes[axis])
 
 
-def _check(image, boundary, lateral, buffer, viscosity, dp, rtol, maxiter):
-    if not isinstance(image, VoxelImage):
-        raise InputError(f"expected a VoxelImage, got {type(image).__name__}; read one with porefsi.read_image")
-    if boundary not in BOUNDARIES:
-        raise InputError(f"unknown boundary {boundary!r}; use one of {BOUNDARIES}")
-    if lateral not in LATERALS:
-        raise InputError(f"unknown lateral boundary {lateral!r}; use one of {LATERALS}")
-    if isinstance(buffer, bool) or not isinstance(buffer, (int, np.integer)) or buffer < 0:
-        raise InputError(f"buffer must be a whole number of voxel layers >= 0, got {buffer!r}")
-    for name, v in (("viscosity", viscosity), ("dp", dp), ("rtol", rtol)):
-        if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
-            raise InputError(f"{name} must be a positive number, got {v!r}")
-    if rtol >= 1:
-        raise InputError(f"rtol must be below 1 (a relative residual reduction), got {rtol!r}")
-    if isinstance(maxiter, bool) or not isinstance(maxiter, (int, np.integer)) or maxiter < 1:
-        raise InputError(f"maxiter must be a positive whole number, got {maxiter!r}")
+@dataclasses.dataclass(frozen=True)
+class StokesOptions:
+    """How :func:`voxel_permeability` solves (validated on construction).
 
-
-def voxel_permeability(image: VoxelImage, axis="x", *, boundary: str = "pressure", buffer: int = 2,
-                       lateral: str = "wall", mirror: bool = False, viscosity: float = 1e-3,
-                       dp: float = 1.0, rtol: float = 1e-6, maxiter: int = 3000,
-                       fields: bool = False, refine: int = 1, max_memory: float | None = None) -> StokesResult:
-    """Permeability of ``image`` along ``axis`` by a voxel-scale Stokes solve.
-
-    Parameters
+    Attributes
     ----------
-    image : VoxelImage
-        Segmented image, 1 = pore. Only the face-connected pore clusters touching both faces
-        normal to ``axis`` are kept (the others carry no net flow).
-    axis : {'x', 'y', 'z', 0, 1, 2}
-        Flow axis.
     boundary : {'pressure', 'periodic'}
         Reservoirs at two pressures beyond ``buffer`` fluid layers, or periodic with a body force
         (see the module notes).
@@ -172,6 +152,10 @@ def voxel_permeability(image: VoxelImage, axis="x", *, boundary: str = "pressure
     mirror : bool, default False
         ``boundary='periodic'``: append the image's mirror image along the axis first (needed for
         an image that is not periodic itself).
+    wall : {'ghost', 'channel'}
+        Tangential no-slip closure (:mod:`porefsi.stokes._grid`): ``'ghost'`` reflection
+        (u_ghost = -u), or ``'channel'``, exact for cell-averaged plane Poiseuille flow in channels
+        of any width in voxels.
     viscosity : float, default 1e-3
         Dynamic viscosity, Pa s (k does not depend on it; Q does).
     dp : float, default 1.0
@@ -191,6 +175,91 @@ def voxel_permeability(image: VoxelImage, axis="x", *, boundary: str = "pressure
     max_memory : float, optional
         ``refine > 1``: memory budget, bytes (default: the address-space limit or the available
         memory, whichever is smaller); the estimate is checked before anything is allocated.
+    """
+
+    boundary: str = "pressure"
+    buffer: int = 2
+    lateral: str = "wall"
+    mirror: bool = False
+    wall: str = DEFAULT_WALL
+    viscosity: float = 1e-3
+    dp: float = 1.0
+    rtol: float = 1e-6
+    maxiter: int = 3000
+    fields: bool = False
+    refine: int = 1
+    max_memory: float | None = None
+
+    def __post_init__(self):
+        _check_choices(self)
+        _check_numbers(self)
+
+    @property
+    def buffer_layers(self) -> int:
+        """Buffer layers actually added (0 with a periodic boundary), native voxels."""
+        return self.buffer if self.boundary == "pressure" else 0
+
+
+def _check_choices(o: StokesOptions) -> None:
+    for name, value, allowed in (("boundary", o.boundary, BOUNDARIES), ("lateral boundary", o.lateral, LATERALS),
+                                 ("wall closure", o.wall, WALLS)):
+        if value not in allowed:
+            raise InputError(f"unknown {name} {value!r}; use one of {tuple(allowed)}")
+    if isinstance(o.buffer, bool) or not isinstance(o.buffer, (int, np.integer)) or o.buffer < 0:
+        raise InputError(f"buffer must be a whole number of voxel layers >= 0, got {o.buffer!r}")
+    check_refine(o.refine)
+
+
+def _check_numbers(o: StokesOptions) -> None:
+    for name, v in (("viscosity", o.viscosity), ("dp", o.dp), ("rtol", o.rtol)):
+        if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
+            raise InputError(f"{name} must be a positive number, got {v!r}")
+    if o.rtol >= 1:
+        raise InputError(f"rtol must be below 1 (a relative residual reduction), got {o.rtol!r}")
+    if isinstance(o.maxiter, bool) or not isinstance(o.maxiter, (int, np.integer)) or o.maxiter < 1:
+        raise InputError(f"maxiter must be a positive whole number, got {o.maxiter!r}")
+
+
+def stokes_options(options: StokesOptions | None = None, **overrides) -> StokesOptions:
+    """``options`` (default :class:`StokesOptions()`) with ``overrides`` replaced; unknown names are an InputError."""
+    base = StokesOptions() if options is None else options
+    if not isinstance(base, StokesOptions):
+        raise InputError(f"options must be a StokesOptions, got {type(base).__name__}")
+    unknown = sorted(set(overrides) - {f.name for f in dataclasses.fields(StokesOptions)})
+    if unknown:
+        raise InputError(f"unknown voxel_permeability option(s) {', '.join(unknown)}; see porefsi.stokes.StokesOptions")
+    return dataclasses.replace(base, **overrides) if overrides else base
+
+
+@dataclasses.dataclass(frozen=True)
+class _Frame:
+    """Where the image sits in the working domain and its scales (voxel units of the solved grid)."""
+
+    axis: int
+    boundary: str
+    buffer: int  # refined buffer layers
+    length: int  # image layers along the axis
+    area: float  # image cross-section, voxels
+    h: float  # solved voxel edge, m
+    shape: tuple  # the (refined) image's shape
+
+
+def voxel_permeability(image: VoxelImage, axis="x", options: StokesOptions | None = None,
+                       **overrides) -> StokesResult:
+    """Permeability of ``image`` along ``axis`` by a voxel-scale Stokes solve.
+
+    Parameters
+    ----------
+    image : VoxelImage
+        Segmented image, 1 = pore. Only the face-connected pore clusters touching both faces
+        normal to ``axis`` are kept (the others carry no net flow).
+    axis : {'x', 'y', 'z', 0, 1, 2}
+        Flow axis.
+    options : StokesOptions, optional
+        How to solve (boundary, buffer, lateral, mirror, wall, viscosity, dp, rtol, maxiter,
+        fields, refine, max_memory; see :class:`StokesOptions`).
+    **overrides
+        Any field of :class:`StokesOptions` by name, replacing the one in ``options``.
 
     Returns
     -------
@@ -211,99 +280,118 @@ def voxel_permeability(image: VoxelImage, axis="x", *, boundary: str = "pressure
     >>> import numpy as np
     >>> from porefsi.image import VoxelImage
     >>> a = np.zeros((4, 6, 6), np.uint8); a[:, 1:5, 1:5] = 1   # a square duct 4 voxels wide, in a 6^2 box
-    >>> r = voxel_permeability(VoxelImage(a, 1e-6), "x", boundary="periodic")
+    >>> img = VoxelImage(a, 1e-6)
+    >>> r = voxel_permeability(img, "x", boundary="periodic", wall="ghost")
     >>> round(r.k_m2 / 1e-12, 4)   # White's series: 0.2499 (Q = 0.5623 (w/2)^4 G / mu over 36 um^2); +22 % at 4 voxels
     0.3056
+    >>> round(voxel_permeability(img, "x", boundary="periodic", wall="channel").k_m2 / 1e-12, 4)   # +6 %
+    0.266
     >>> r.flux_spread < 1e-5, r.converged
     (True, True)
     """
     t_start, c_start = time.perf_counter(), time.process_time()
-    _check(image, boundary, lateral, buffer, viscosity, dp, rtol, maxiter)
+    if not isinstance(image, VoxelImage):
+        raise InputError(f"expected a VoxelImage, got {type(image).__name__}; read one with porefsi.read_image")
+    opts = stokes_options(options, **overrides)
     ax = axis_index(axis)
-    f = check_refine(refine)
-    if f > 1:
-        check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), f, ax,
-                             buffer if boundary == "pressure" else 0, max_memory)
-    periodic = [lateral == "periodic"] * 3
-    periodic[ax] = boundary == "periodic"
-    kept, n_clusters = flowing_clusters(image.pore, ax, periodic)
-    connected = float(kept.mean())
-    kept = upsample_mask(kept, f)  # face connectivity is unchanged by the refinement
-    shape = kept.shape
-    n, h = shape[ax], image.voxel_size / f
-    area_vox = kept.size / n
-    buffer_native, buffer = buffer, buffer * f
-    if boundary == "pressure":
-        work = with_buffers(kept, ax, buffer)
-        del kept
-        system = assemble(work, periodic=periodic, open_axis=ax, p_in=float(work.shape[ax]), p_out=0.0,
-                          neighbours=False)
-    else:
-        if not np.any(~kept) and lateral == "periodic":
-            raise InputError("an all-pore periodic box has no wall: the flow is unbounded; add solid")
-        work = mirrored(kept, ax) if mirror else kept
-        del kept
-        system = assemble(work, periodic=periodic, body_axis=ax, body_force=1.0, neighbours=False)
-    del work
+    if opts.refine > 1:
+        check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), opts.refine, ax, opts.buffer_layers,
+                             opts.max_memory)
+    system, frame, (connected, n_clusters) = _build_system(image, ax, opts)
     ml = pressure_preconditioner(system)  # before the neighbour table: lower peak memory
     system = with_neighbours(system)
     t_setup = time.perf_counter() - t_start
-    u, p, sinfo = solve(system, rtol=rtol, maxiter=maxiter, preconditioner=ml,
-                        monitor=_progress(system, ax, boundary, buffer, n, area_vox, h))
+    u, p, sinfo = solve(system, rtol=opts.rtol, maxiter=opts.maxiter, preconditioner=ml,
+                        monitor=_progress(system, frame))
     del ml
-    if not sinfo.converged:
-        raise ConvergenceError(
-            f"voxel Stokes solve along {AXES[ax]} did not converge in {maxiter} MINRES iterations "
-            f"(relative residual {sinfo.history[-1]:.2e} > rtol {rtol:g}); raise maxiter or rtol",
-            history=sinfo.history,
-        )
-    if not sinfo.residual <= TRUE_RESIDUAL_FACTOR * rtol:
-        raise ConvergenceError(
-            f"voxel Stokes solve along {AXES[ax]}: the preconditioned residual reached rtol {rtol:g} but the true "
-            f"relative residual is {sinfo.residual:.2e} (a preconditioner defect); report this with the image",
-            history=sinfo.history,
-        )
+    _check_converged(sinfo, ax, opts)
     q = plane_fluxes(system, u, ax)
-    q_mean = float(q.mean())
-    spread = float((q.max() - q.min()) / abs(q_mean)) if q_mean else float("inf")
-    if boundary == "pressure":
-        dp_vox = _face_pressure_drop(system, p, ax, buffer, n)
-    else:
-        dp_vox = float(n)  # unit body force over the image length
-    k_vox = q_mean * n / (area_vox * dp_vox)
-    k = k_vox * h * h
-    scale = dp / dp_vox  # voxel-unit pressure -> Pa
-    flow_rate = q_mean * scale * h**3 / viscosity
-    res = StokesResult(
-        k_m2=float(k), k_mD=float(k / MILLIDARCY), axis=AXES[ax], flow_rate=float(flow_rate), dp=float(dp),
-        viscosity=float(viscosity), length=n * h, area=area_vox * h * h, boundary=boundary,
-        iterations=sinfo.iterations, residual=sinfo.residual, flux_spread=spread, converged=sinfo.converged,
-        seconds=time.perf_counter() - t_start, memory_bytes=int(sinfo.memory_bytes),
-        n_unknowns=system.n_u + system.n_p, porosity=image.porosity, connected_porosity=connected,
-        info={"buffer": buffer_native if boundary == "pressure" else 0, "refine": f, "mirror": bool(mirror),
-              "lateral": lateral,
-              "n_clusters": n_clusters, "seconds_setup": t_setup + sinfo.seconds_setup,
+    dp_vox = _face_pressure_drop(system, p, frame) if opts.boundary == "pressure" else float(frame.length)
+    res = _result(opts, frame, (q, dp_vox), sinfo, dict(
+        axis=AXES[ax], n_unknowns=system.n_u + system.n_p, porosity=image.porosity, connected_porosity=connected,
+        info={"buffer": opts.buffer_layers, "refine": opts.refine, "mirror": bool(opts.mirror),
+              "lateral": opts.lateral, "wall": opts.wall, "n_clusters": n_clusters,
+              "seconds_setup": t_setup + sinfo.seconds_setup,
               "seconds_solve": sinfo.seconds_solve, "cpu_seconds": time.process_time() - c_start,
               "history": sinfo.history},
-    )
-    if fields:
-        pf, vf = _fields(system, u, p, shape, ax, boundary, buffer, scale, h / viscosity * scale)
+        seconds=time.perf_counter() - t_start))
+    if opts.fields:
+        scale = opts.dp / dp_vox  # voxel-unit pressure -> Pa
+        pf, vf = _fields(system, (u, p), frame, (scale, frame.h / opts.viscosity * scale))
         res = dataclasses.replace(res, pressure=pf, velocity=vf)
     return res
 
 
-def _progress(system, ax, boundary, buffer, n, area_vox, h):
+def _result(opts: StokesOptions, frame: _Frame, flow, sinfo, rest: dict) -> StokesResult:
+    """The :class:`StokesResult` of plane fluxes and face pressure drop ``flow`` = (q, dp), voxel units."""
+    q, dp_vox = flow
+    q_mean = float(q.mean())
+    k = q_mean * frame.length / (frame.area * dp_vox) * frame.h**2
+    scale = opts.dp / dp_vox  # voxel-unit pressure -> Pa
+    return StokesResult(
+        k_m2=float(k), k_mD=float(k / MILLIDARCY), flow_rate=float(q_mean * scale * frame.h**3 / opts.viscosity),
+        dp=float(opts.dp), viscosity=float(opts.viscosity), length=frame.length * frame.h,
+        area=frame.area * frame.h**2, boundary=opts.boundary, iterations=sinfo.iterations, residual=sinfo.residual,
+        flux_spread=float((q.max() - q.min()) / abs(q_mean)) if q_mean else float("inf"),
+        converged=sinfo.converged, memory_bytes=int(sinfo.memory_bytes), **rest)
+
+
+def _build_system(image: VoxelImage, ax: int, opts: StokesOptions):
+    """The coupling tables (no neighbour table yet) of the working domain, its frame and the clusters kept.
+
+    Returns ``(system, frame, (connected porosity, number of clusters))``; the working domain is the
+    flowing clusters, refined, with buffers or a mirror copy added.
+    """
+    periodic = [opts.lateral == "periodic"] * 3
+    periodic[ax] = opts.boundary == "periodic"
+    kept, n_clusters = flowing_clusters(image.pore, ax, periodic)
+    connected = float(kept.mean())
+    f = opts.refine
+    kept = upsample_mask(kept, f)  # face connectivity is unchanged by the refinement
+    frame = _Frame(ax, opts.boundary, opts.buffer_layers * f, kept.shape[ax], kept.size / kept.shape[ax],
+                   image.voxel_size / f, kept.shape)
+    if opts.boundary == "pressure":
+        work = with_buffers(kept, ax, frame.buffer)
+        del kept
+        system = assemble(work, periodic=periodic, open_axis=ax, pressures=(float(work.shape[ax]), 0.0),
+                          wall=opts.wall, neighbours=False)
+    else:
+        if not np.any(~kept) and opts.lateral == "periodic":
+            raise InputError("an all-pore periodic box has no wall: the flow is unbounded; add solid")
+        work = mirrored(kept, ax) if opts.mirror else kept
+        del kept
+        system = assemble(work, periodic=periodic, body_axis=ax, body_force=1.0, wall=opts.wall, neighbours=False)
+    return system, frame, (connected, n_clusters)
+
+
+def _check_converged(sinfo, ax: int, opts: StokesOptions) -> None:
+    if not sinfo.converged:
+        raise ConvergenceError(
+            f"voxel Stokes solve along {AXES[ax]} did not converge in {opts.maxiter} MINRES iterations "
+            f"(relative residual {sinfo.history[-1]:.2e} > rtol {opts.rtol:g}); raise maxiter or rtol",
+            history=sinfo.history,
+        )
+    if not sinfo.residual <= TRUE_RESIDUAL_FACTOR * opts.rtol:
+        raise ConvergenceError(
+            f"voxel Stokes solve along {AXES[ax]}: the preconditioned residual reached rtol {opts.rtol:g} but the "
+            f"true relative residual is {sinfo.residual:.2e} (a preconditioner defect); report this with the image",
+            history=sinfo.history,
+        )
+
+
+def _progress(system, frame: _Frame):
     """A :func:`._solve.solve` monitor that logs the residual and the k (mD) of the current iterate.
 
     None when INFO logging of :mod:`._solve` is off (no flux is computed then).
     """
     if not _solve_log.isEnabledFor(logging.INFO):
         return None
+    n = frame.length
 
     def monitor(it, res, x):
-        q = float(plane_fluxes(system, x[:system.n_u], ax).mean())
-        dp_vox = _face_pressure_drop(system, x[system.n_u:], ax, buffer, n) if boundary == "pressure" else float(n)
-        k = q * n / (area_vox * dp_vox) * h * h / MILLIDARCY if dp_vox else float("nan")
+        q = float(plane_fluxes(system, x[:system.n_u], frame.axis).mean())
+        dp_vox = _face_pressure_drop(system, x[system.n_u:], frame) if frame.boundary == "pressure" else float(n)
+        k = q * n / (frame.area * dp_vox) * frame.h**2 / MILLIDARCY if dp_vox else float("nan")
         _solve_log.info("MINRES iteration %d: relative preconditioned residual %.3e, k of the iterate %.2f mD",
                         it, res, k)
     return monitor
@@ -314,8 +402,9 @@ def _layer_mean(system, p, ax, i):
     return float(p[layer].mean())
 
 
-def _face_pressure_drop(system: StaggeredSystem, p, ax, buffer, n) -> float:
+def _face_pressure_drop(system: StaggeredSystem, p, frame: _Frame) -> float:
     """Pressure drop between the two image faces (voxel units): see the module notes."""
+    ax, buffer = frame.axis, frame.buffer
     N = system.shape[ax]
     p_in, p_out = float(N), 0.0
     if buffer == 0:
@@ -328,9 +417,13 @@ def _face_pressure_drop(system: StaggeredSystem, p, ax, buffer, n) -> float:
     return (a1 + 0.5 * (a1 - a2)) - (b1 + 0.5 * (b1 - b2))
 
 
-def _fields(system, u, p, shape, ax, boundary, buffer, p_scale, u_scale):
-    """Pressure (Pa) and voxel-centred velocity (m/s) on the image's voxels."""
-    lo = buffer if boundary == "pressure" else 0
+def _fields(system, x, frame: _Frame, scales):
+    """Pressure (Pa) and voxel-centred velocity (m/s) on the image's voxels.
+
+    ``x`` = (u, p) in voxel units; ``scales`` = (pressure scale, velocity scale) to SI.
+    """
+    (u, p), (p_scale, u_scale), ax, shape = x, scales, frame.axis, frame.shape
+    lo = frame.buffer
     sl = [slice(None)] * 3
     sl[ax] = slice(lo, lo + shape[ax])
     sl = tuple(sl)

@@ -29,7 +29,7 @@ from scipy.optimize import brentq
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import axis_index
 from porefsi.stokes._refine_grid import check_refine, check_refined_memory
-from porefsi.stokes.permeability import StokesResult, voxel_permeability
+from porefsi.stokes.permeability import StokesOptions, StokesResult, stokes_options, voxel_permeability
 from porefsi.units import MILLIDARCY
 
 __all__ = ["Extrapolation", "ExtrapolatedPermeability", "richardson", "extrapolated_permeability",
@@ -180,8 +180,8 @@ class ExtrapolatedPermeability:
     seconds: float
 
 
-def extrapolated_permeability(image, axis="x", levels=(1, 2, 3), *, max_memory: float | None = None,
-                              **kwargs) -> ExtrapolatedPermeability:
+def extrapolated_permeability(image, axis="x", levels=(1, 2, 3), options: StokesOptions | None = None,
+                              **overrides) -> ExtrapolatedPermeability:
     """Solve ``image`` refined at each of ``levels`` and Richardson-extrapolate k.
 
     Parameters
@@ -190,11 +190,12 @@ def extrapolated_permeability(image, axis="x", levels=(1, 2, 3), *, max_memory: 
     axis : {'x', 'y', 'z', 0, 1, 2}
     levels : sequence of int, default (1, 2, 3)
         Refinement factors, increasing; three or more give an observed order.
-    max_memory : float, optional
-        Memory budget, bytes; the finest level's estimate is checked before any solve.
-    **kwargs
-        Passed to :func:`porefsi.stokes.voxel_permeability` (boundary, buffer, rtol, ...; not
-        ``refine``).
+    options : StokesOptions, optional
+        Passed to :func:`porefsi.stokes.voxel_permeability` (boundary, buffer, wall, rtol, ...;
+        its ``refine`` and ``fields`` must be left at their defaults). ``max_memory`` bounds the
+        finest level, whose estimate is checked before any solve.
+    **overrides
+        Fields of :class:`~porefsi.stokes.StokesOptions` by name.
 
     Returns
     -------
@@ -206,19 +207,19 @@ def extrapolated_permeability(image, axis="x", levels=(1, 2, 3), *, max_memory: 
         Bad levels, or the finest level would not fit in memory.
     """
     t0 = time.perf_counter()
-    if "refine" in kwargs or "fields" in kwargs:
+    if "refine" in overrides or "fields" in overrides:
+        raise InputError("extrapolated_permeability sets refine itself (pass levels) and returns no fields")
+    opts = stokes_options(options, **overrides)
+    if opts.refine != 1 or opts.fields:
         raise InputError("extrapolated_permeability sets refine itself (pass levels) and returns no fields")
     levels = tuple(check_refine(f) for f in levels)
     if len(levels) < 2 or any(b <= a for a, b in zip(levels, levels[1:], strict=False)):
         raise InputError(f"levels must be two or more increasing refinement factors, got {levels}")
     if not hasattr(image, "pore"):
         raise InputError(f"expected a VoxelImage, got {type(image).__name__}; read one with porefsi.read_image")
-    buffer = kwargs.get("buffer", 2) if kwargs.get("boundary", "pressure") == "pressure" else 0
-    if isinstance(buffer, (int, np.integer)) and not isinstance(buffer, bool) and buffer >= 0:
-        check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), levels[-1], axis_index(axis),
-                             int(buffer), max_memory)
-    results: list[StokesResult] = [voxel_permeability(image, axis, refine=f, max_memory=max_memory, **kwargs)
-                                   for f in levels]
+    check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), levels[-1], axis_index(axis),
+                         opts.buffer_layers, opts.max_memory)
+    results: list[StokesResult] = [voxel_permeability(image, axis, opts, refine=f) for f in levels]
     ext = richardson(levels, [r.k_mD for r in results])
     native = ext.error_at(1) if levels[0] == 1 else float("nan")
     return ExtrapolatedPermeability(
