@@ -96,9 +96,10 @@ def test_default_model_drains_voxelised_ducts_at_the_closed_form(shape, r):
     ratios = [_breakthrough(_duct(shape, r, rng), "shape_factor") / EXACT[shape](r) for _ in range(3)]
     # The default model reads the voxel staircase's inscribed radius (docs/extraction.md): on a
     # voxelised circle of radius 4 it lies ~0.5 voxel inside the smooth circle, on a voxelised slit
-    # at the staircase's corners, so those enter above the smooth closed form (measured 2026-12-02:
-    # circle 1.02-1.14, slit 1.17 at every offset); squares and triangles stay within 8 %.
-    expect, tol = {"circle": (1.08, 0.08), "slit": (1.17, 0.05)}.get(shape, (1.0, 0.08))
+    # at the staircase's corners, a tilted square's staircase inside the square, so those enter above
+    # the smooth closed form (measured 2026-12-02, the staircase's section peak: circle 1.02-1.14,
+    # slit 1.17 at every offset, square 1.07-1.13); triangles stay within 8 %.
+    expect, tol = {"circle": (1.08, 0.08), "slit": (1.17, 0.05), "square": (1.10, 0.05)}.get(shape, (1.0, 0.08))
     assert np.mean(ratios) == pytest.approx(expect, abs=tol), ratios
     assert max(abs(x - expect) for x in ratios) < tol + 0.04, ratios
 

@@ -104,10 +104,18 @@ class DrainageSimulator:
         self.rate = options.rate if options.inlet_pressure is None else None
         self.inlet_pressure_bc = options.inlet_pressure
         self.graph = build_graph(net, fluids, self.axis, keep=_keep)
-        self._opts = options.engine_options(self.graph.n)
+        self._opts = options.engine_options(self.graph.n, self.capillary_number)
         self._engine = _make_engine(self.graph, self.rate, self.inlet_pressure_bc, self._opts)
 
     # -- sizes and counters ----------------------------------------------------------------
+    @property
+    def capillary_number(self) -> float:
+        """Ca = mu_n Q / (sigma A), A the network's extent across ``axis`` (NaN at constant pressure)."""
+        if self.rate is None:
+            return math.nan
+        area = float(np.prod(np.delete(np.asarray(self.net.extent, dtype=float), self.axis)))
+        return self.fluids.capillary_number(self.rate, area) if area > 0 else math.inf
+
     @property
     def n_dropped(self) -> int:
         """Number of pores dropped because they do not connect the inlet face to the outlet face."""

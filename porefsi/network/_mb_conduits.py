@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from porefsi.network._mb_sections import _constriction_lengths, _sections, _subvoxel_peaks
+from porefsi.network._mb_sections import _constriction_lengths, _sections, _stair_section_peaks, _subvoxel_peaks
 from porefsi.network.network import CIRCLE_SHAPE_FACTOR
 
 __all__ = [
@@ -95,17 +95,19 @@ def _radius_table(dt2, convention: str = "digital") -> np.ndarray:
 
 
 def subvoxel_radii(dt2, centre, point, conns, w):
-    """Pore and throat radii (voxels) of the measured geometry, in the :func:`wall_radius` convention.
+    """Pore and throat radii (voxels) of the measured geometry: the voxel staircase's own.
 
-    Pore: the wall radius of its master ball's centre voxel. Throat:
-    :func:`porefsi.network._mb_sections._subvoxel_peaks` at the throat point (in the interface
-    plane: corrects the sub-voxel offset of the channel's axis from the voxel centres), never below
-    the wall radius of the interface's largest ``dt2`` (``w``), clipped to both pore radii.
+    Pore: :func:`porefsi.network._mb_sections._subvoxel_peaks` at its master ball's centre voxel
+    (the distance to the nearest solid voxel cube plus the max-norm sub-voxel correction). Throat:
+    :func:`porefsi.network._mb_sections._stair_section_peaks` at the throat point, the largest
+    distance to the staircase over points within half a voxel in the interface plane (exactly the
+    same in metres at every refinement of the image), clipped to both pore radii. ``w`` (the
+    interface's largest ``dt2``) is unused: kept for the caller's signature.
     """
     tab = _radius_table(dt2, "wall")
     c = np.rint(centre).astype(np.int64)
     r_pore = _subvoxel_peaks(dt2, tab, c.astype(np.float64))
-    rt = _subvoxel_peaks(dt2, tab, point)
+    rt = _stair_section_peaks(dt2, point, 0.5, 4)
     rt = np.minimum(rt, np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
     return r_pore, rt
 

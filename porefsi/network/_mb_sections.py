@@ -269,6 +269,62 @@ def _stair_rad(dt2, a, b, c):
 
 
 @jit
+def _stair_dist(dt2, x, y, z, bound):
+    """Distance from the point (x, y, z) to the nearest solid voxel cube, searched within ``bound``."""
+    nx, ny, nz = dt2.shape
+    best2 = bound * bound
+    h = int(bound) + 1
+    a0, b0, c0 = int(math.floor(x + 0.5)), int(math.floor(y + 0.5)), int(math.floor(z + 0.5))
+    for i in range(max(a0 - h, 0), min(a0 + h, nx - 1) + 1):
+        ei = max(abs(i - x) - 0.5, 0.0) ** 2
+        if ei >= best2:
+            continue
+        for j in range(max(b0 - h, 0), min(b0 + h, ny - 1) + 1):
+            ej = ei + max(abs(j - y) - 0.5, 0.0) ** 2
+            if ej >= best2:
+                continue
+            for k in range(max(c0 - h, 0), min(c0 + h, nz - 1) + 1):
+                if dt2[i, j, k] == 0:
+                    e = ej + max(abs(k - z) - 0.5, 0.0) ** 2
+                    if e < best2:
+                        best2 = e
+    return math.sqrt(best2)
+
+
+@jit
+def _stair_section_peaks(dt2, points, half, n):
+    """Largest distance to the voxel staircase over a grid of points around each point, voxels.
+
+    ``(2 n + 1)`` points per axis at spacing ``half / n`` within ``half`` of the point, in the
+    interface plane for a face point (one half-integer coordinate: that axis is held), in 3-D for
+    a voxel point: the staircase's own inscribed radius near the point, read at sub-voxel
+    positions (so a channel whose axis falls between voxel centres reads the same at every grid).
+    """
+    m = points.shape[0]
+    out = np.zeros(m, np.float64)
+    for q in range(m):
+        x0, y0, z0 = points[q, 0], points[q, 1], points[q, 2]
+        held = -1
+        for t in range(3):
+            if points[q, t] - math.floor(points[q, t]) > 0.25:
+                held = t
+        nx, ny, nz = dt2.shape
+        a, b, c = _nearest(x0, nx), _nearest(y0, ny), _nearest(z0, nz)
+        bound = math.sqrt(max(dt2[a, b, c], 1)) + 2.0
+        best = 0.0
+        for s in range(-n, n + 1):
+            for t in range(-n, n + 1):
+                for u in range(-n, n + 1):
+                    if (held == 0 and s != 0) or (held == 1 and t != 0) or (held == 2 and u != 0):
+                        continue
+                    d = _stair_dist(dt2, x0 + s * half / n, y0 + t * half / n, z0 + u * half / n, bound)
+                    if d > best:
+                        best = d
+        out[q] = best
+    return out
+
+
+@jit
 def _face_rad(dt2, rad_tab, a, b, c, ax):
     """Radius at voxel (a, b, c), or (``ax`` >= 0) the mean over it and its +``ax`` neighbour (a face)."""
     v = _stair_rad(dt2, a, b, c)
