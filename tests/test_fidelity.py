@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 
 from porefsi.case._fidelity_fit import fit_calibration
-from porefsi.case._fidelity_model import Scene, Setting, calibration, expected_cpu, expected_error, pore_chord, scene_of
+from porefsi.case._fidelity_model import (
+    Scene,
+    Setting,
+    calibration,
+    cpu_parts,
+    expected_cpu,
+    expected_error,
+    pore_chord,
+    scene_of,
+)
 from porefsi.case.config import FIDELITY_KEYS, Case, case_from_dict, case_to_toml, load_case
 from porefsi.case.fidelity import PRESETS, choose, resolve_fidelity
 from porefsi.errors import ConfigError
@@ -84,6 +93,28 @@ def test_cost_model_reproduces_the_calibration_runs(sample_scene):
         r = cal["data"]["runs"][name]
         pred = expected_cpu(sample_scene, Setting(coarsen=r["coarsen"]), cal)
         assert r["cpu_s"] / 1.6 < pred < 1.6 * r["cpu_s"], (name, pred, r["cpu_s"])
+
+
+def test_cost_by_stage_reproduces_the_calibration_runs(sample_scene):
+    """Each stage of the cost model against the measured CPU of that stage (within 1.6x, or 0.05 s)."""
+    cal = calibration()
+    for name in cal["data"]["direct_series"]:
+        r = cal["data"]["runs"][name]
+        parts = cpu_parts(sample_scene, Setting(coarsen=r["coarsen"]), cal)
+        st = r["stage_seconds"]
+        measured = {"setup": sum(v for k, v in st.items() if k.startswith("setup_")), "solid": st["solid"],
+                    "stress": st["stress"], "update": st["update"], "fluid": st.get("fluid", 0.0)}
+        for part, m in measured.items():
+            assert m / 1.6 - 0.05 < parts[part] < 1.6 * m + 0.05, (name, part, parts[part], m)
+
+
+def test_error_against_the_reference_counts_the_references_own_error():
+    """Against the coarsen-3 reference the expected error is hypot(E(c), E(3)): at c = 3, sqrt(2) E(3)."""
+    s = _scene()
+    e3 = expected_error(s, Setting(coarsen=3))
+    assert expected_error(s, Setting(coarsen=3), vs_reference=True) == pytest.approx(math.sqrt(2) * e3)
+    e8 = expected_error(s, Setting(coarsen=8))
+    assert expected_error(s, Setting(coarsen=8), vs_reference=True) == pytest.approx(math.hypot(e8, e3))
 
 
 def test_interface_integrator_and_scheme_terms():

@@ -42,7 +42,7 @@ from porefsi.flow.fluids import Fluids
 from porefsi.solid.footprint import DIRECT_MAX_DOFS
 from porefsi.solid.mesh import MIN_BLOCKS, MIN_PORE_KEPT, mesh_size
 
-__all__ = ["Scene", "Setting", "scene_of", "calibration", "expected_error", "expected_cpu", "pore_chord"]
+__all__ = ["Scene", "Setting", "scene_of", "calibration", "expected_error", "expected_cpu", "cpu_parts", "pore_chord"]
 
 CALIBRATION_FILE = "fidelity_calibration.json"
 #: Coarsenings ``auto`` considers; of them those whose blocks tile the image (every size a multiple),
@@ -222,8 +222,8 @@ def _solid_cpu(n_dofs: float, n_steps: int, cal: dict) -> float:
     return math.exp(q[0] + q[1] * x + q[2] * x * x) + n_steps * step
 
 
-def expected_cpu(scene: Scene, s: Setting, cal: dict | None = None) -> float:
-    """Expected CPU seconds (one thread) of setting ``s`` on ``scene`` (module docstring)."""
+def cpu_parts(scene: Scene, s: Setting, cal: dict | None = None) -> dict:
+    """Expected CPU seconds of setting ``s`` on ``scene`` by stage: set-up, solid, stress, update, fluid."""
     cal = calibration() if cal is None else cal
     c = cal["cost"]
     n_tets, n_dofs = scene.mesh[s.coarsen][:2]
@@ -237,11 +237,16 @@ def expected_cpu(scene: Scene, s: Setting, cal: dict | None = None) -> float:
     setup = c["extract_per_voxel"] * scene.n_voxels + c["mesh_per_tet"] * n_tets
     setup += (c["hull_per_pore_point"] * scene.n_pores * s.n_test_points if s.interface == "hull"
               else c["traction_per_tet"] * n_tets)
-    steps = scene.n_steps * (c["stress_per_tet_step"] * n_tets + c["fluid_per_step"])
-    if s.update != "none":
-        steps += scene.n_steps * c["update_per_pore_step"] * scene.n_pores
-    fluid = c["fluid_per_event_pore"] * scene.n_events * scene.n_pores
+    fluid = scene.n_steps * c["fluid_per_step"] + c["fluid_per_event_pore"] * scene.n_events * scene.n_pores
     if s.scheme == "adaptive":
         ratio = _interp_log_ca(scene, cal["scheme"]["adaptive"], "fluid_cost_ratio")
         fluid = fluid * ratio + c["adaptive_fluid_extra_s"]
-    return float(setup + solid + steps + fluid)
+    update = scene.n_steps * c["update_per_pore_step"] * scene.n_pores if s.update != "none" else 0.0
+    stress = scene.n_steps * c["stress_per_tet_step"] * n_tets
+    return {"setup": float(setup), "solid": float(solid), "stress": float(stress), "update": float(update),
+            "fluid": float(fluid)}
+
+
+def expected_cpu(scene: Scene, s: Setting, cal: dict | None = None) -> float:
+    """Expected CPU seconds (one thread) of setting ``s`` on ``scene`` (module docstring)."""
+    return float(sum(cpu_parts(scene, s, cal).values()))

@@ -128,7 +128,7 @@ class FidelityConfig:
     """
 
     preset: str = _f("none", "none = the case's keys as they are (default); auto = chosen from the calibrated "
-                     "error model for a target (tolerance or budget_s); fast = coarsen 6; accurate = coarsen 4; "
+                     "error model for a target (tolerance or budget_s); fast = coarsen 6; accurate = coarsen 3; "
                      "paper = the seed paper's methods (hull, TDG left rule, re-extraction)",
                      choices=("none", "auto", "fast", "accurate", "paper"))
     tolerance: float | None = _f(None, "auto: target relative L2 error of the displacement (as in the "

@@ -38,7 +38,7 @@ __all__ = ["PRESETS", "FidelityChoice", "resolve_fidelity", "fidelity_summary", 
 PRESETS: dict[str, dict[str, object]] = {
     "fast": {"solid.coarsen": 6, "interface.method": "traction", "coupling.integrator": "static",
              "network.update": "geometric", "drainage.scheme": "exact", "solid.response": "nonlinear"},
-    "accurate": {"solid.coarsen": 4, "interface.method": "traction", "coupling.integrator": "static",
+    "accurate": {"solid.coarsen": 3, "interface.method": "traction", "coupling.integrator": "static",
                  "network.update": "geometric", "drainage.scheme": "exact", "solid.response": "nonlinear"},
     "paper": {"solid.coarsen": 5, "interface.method": "hull", "interface.n_test_points": 800,
               "coupling.integrator": "tdg", "coupling.tdg_iterations": 2, "coupling.tdg_load_rule": "left",
