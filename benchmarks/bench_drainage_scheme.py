@@ -60,6 +60,13 @@ def _network(name, image, cache):
     return net
 
 
+def _number(v: str):
+    try:
+        return int(v)
+    except ValueError:
+        return float(v)
+
+
 def _rate(spec, net, fl):
     if spec == "paper":
         return PAPER_RATE
@@ -77,7 +84,11 @@ def main(argv=None):
     p.add_argument("--image")
     p.add_argument("--schemes", nargs="+", default=["exact", "adaptive"])
     p.add_argument("--fresh", action="store_true", help="recompute the adaptive runs even if cached")
+    p.add_argument("--opt", nargs="*", default=[], metavar="KEY=VALUE",
+                   help="adaptive options, e.g. tie_tolerance=0.01 local_solves=0 (numbers parsed)")
     args = p.parse_args(argv)
+    opts = {k: _number(v) for k, v in (o.split("=", 1) for o in args.opt)}
+    tag = "".join(f"_{k}{v}" for k, v in sorted(opts.items())).replace(".", "p")  # no dot: file suffixes
     cache = pathlib.Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
     fl = Fluids()
@@ -91,14 +102,15 @@ def main(argv=None):
             ca = fl.capillary_number(rate, float(np.prod(net.extent[1:])))
             recs = {}
             for s in args.schemes:
-                path = cache / f"{name}_{spec}_{s}"
+                path = cache / f"{name}_{spec}_{s}{tag if s != 'exact' else ''}"
                 rec = load_run(path)
                 if rec is None or (s != "exact" and args.fresh):
-                    rec = run_sampled(net, fl, rate, s, max_cpu=args.max_cpu)
+                    rec = run_sampled(net, fl, rate, s, max_cpu=args.max_cpu, **(opts if s != "exact" else {}))
                     save_run(path, rec, dict(net=name, n_pores=net.n_pores, ca=ca, commit=git_commit()))
                 recs[s] = rec
                 c = rec["counters"]
-                print(f"{name} ({net.n_pores} pores) Ca={ca:.2e} {s:>8s}: cpu {rec['cpu_s']:.1f} s "
+                label = s + (tag if s != "exact" else "")
+                print(f"{name} ({net.n_pores} pores) Ca={ca:.2e} {label:>8s}: cpu {rec['cpu_s']:.1f} s "
                       f"{'' if rec['complete'] else '(STOPPED) '}events {c['n_events']} solves {c['n_solves']}"
                       + (f" certified {c['n_certified_fills']} local {c['n_local_solves']} global "
                          f"{c['n_global_solves']}" if "n_certified_fills" in c else "")

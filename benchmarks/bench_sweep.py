@@ -26,7 +26,7 @@ from pathlib import Path
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
-from porefsi.sweep import load_sweep, run_sweep, sweep_from_dict  # noqa: E402
+from porefsi.sweep import Cluster, load_sweep, run_sweep, sweep_from_dict  # noqa: E402
 from porefsi.sweep.spec import Sweep  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -49,9 +49,9 @@ def subset(sweep: Sweep, n: int | None) -> Sweep:
     return dataclasses.replace(sweep, members=sweep.members[:n])
 
 
-def timed_sweep(sweep: Sweep, out: Path, **kw) -> dict:
+def timed_sweep(sweep: Sweep, out: Path, cluster: Cluster) -> dict:
     la0, t0 = load(), time.perf_counter()
-    res = run_sweep(sweep, out, progress=False, figures=False, **kw)
+    res = run_sweep(sweep, out, cluster, progress=False, figures=False)
     wall = time.perf_counter() - t0
     ok = [r for r in res.records if r["status"] == "completed"]
     return {"wall": wall, "load_before": la0, "load_after": load(), "n_ok": len(ok), "n": len(res.records),
@@ -63,10 +63,10 @@ def timed_sweep(sweep: Sweep, out: Path, **kw) -> dict:
 def study(args, root: Path) -> None:
     sweep = subset(load_sweep(STUDY), args.members)
     print(f"== speed_accuracy sweep: {len(sweep.members)} of 22 members (t_end 10 s, figures and VTK off)")
-    ser = timed_sweep(sweep, root / "serial", serial=True)
+    ser = timed_sweep(sweep, root / "serial", Cluster(serial=True))
     print(f"serial:       wall {ser['wall']:7.1f} s  (members: wall {ser['member_wall']:.1f} s, CPU "
           f"{ser['member_cpu']:.1f} s; load {ser['load_before']} -> {ser['load_after']})", flush=True)
-    dk = timed_sweep(sweep, root / "dask", n_workers=args.workers)
+    dk = timed_sweep(sweep, root / "dask", Cluster(n_workers=args.workers))
     print(f"LocalCluster: wall {dk['wall']:7.1f} s  ({args.workers} workers; members: wall {dk['member_wall']:.1f} s, "
           f"CPU {dk['member_cpu']:.1f} s; load {dk['load_before']} -> {dk['load_after']})")
     print(f"speed-up serial / LocalCluster = {ser['wall'] / dk['wall']:.2f} (ideal {args.workers} on an idle machine "
@@ -96,7 +96,7 @@ def bookkeeping(n: int, root: Path) -> None:
                   "output": {"vtk": False, "figures": False, "snapshot_times": []}},
          "vary": {"drainage.rate": [1.25e-13 * (1 + i / n) for i in range(n)]}}
     sweep = sweep_from_dict(d)
-    r = timed_sweep(sweep, root / "tiny", serial=True)
+    r = timed_sweep(sweep, root / "tiny", Cluster(serial=True))
     assert r["n_ok"] == n, "tiny members failed"
     per = (r["wall"] - r["member_wall"]) / n
     print(f"porefsi bookkeeping, serial sweep of {n} tiny members: sweep wall {r['wall']:.2f} s, members' own "

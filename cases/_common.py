@@ -48,7 +48,21 @@ def parse_args(doc: str, argv=None, extra: Callable[[argparse.ArgumentParser], N
                    help="where figures/ and results.json go (default: the case folder; with --smoke a temporary one)")
     if extra is not None:
         extra(p)
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    single_threaded_numba()
+    return args
+
+
+def single_threaded_numba() -> None:
+    """Run porefsi's parallel numba kernels on one thread, so the cases' CPU times compare.
+
+    Through ``numba.set_num_threads``, not the ``NUMBA_NUM_THREADS`` variable: numba refuses a
+    changed variable once its threads have started, which they have when a case runs inside a
+    process that extracted a network before (the smoke tests).
+    """
+    import numba
+
+    numba.set_num_threads(1)
 
 
 def sweep_arguments(p: argparse.ArgumentParser) -> None:

@@ -49,8 +49,8 @@ def option(default, doc: str, *, choices=None, limits: Limits | None = None, uni
     """A dataclass field with its documentation and validation rule.
 
     ``items`` validates the elements of a list field: ``"number"`` (finite numbers within
-    ``limits``, stored as floats) or ``"crop"`` (empty, or three ``[start, stop]`` pairs of
-    integers with ``0 <= start < stop``).
+    ``limits``, stored as floats), ``"crop"`` (empty, or three ``[start, stop]`` pairs of
+    integers with ``0 <= start < stop``) or ``"keys"`` (strings, option names ``section.key``).
     """
     meta = {"doc": doc, "choices": choices, "limits": limits or Limits(), "unit": unit, "optional": optional,
             "items": items}
@@ -138,6 +138,11 @@ def _check_items(key: str, m: dict, value: list, where: str) -> list:
             if not 0 <= a < b:
                 raise ConfigError(f"{where}: {key} on {ax} must satisfy 0 <= start < stop, got [{a}, {b}]")
         return [list(c) for c in value]
+    if m["items"] == "keys":
+        for i, x in enumerate(value):
+            if not isinstance(x, str):
+                raise ConfigError(f"{where}: {key}[{i}] must be a key name such as \"solid.coarsen\", got {x!r}")
+        return list(value)
     return value
 
 

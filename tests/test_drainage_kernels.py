@@ -40,7 +40,7 @@ def test_most_violated_matches_twin(rng):
         closed = rng.random(E) < 0.2
         blocked = rng.random(E) < 0.2
         P = rng.uniform(0, 2e4, n + 1)
-        got = kern._most_violated(g.a, g.b, n, full, trapped, inv, closed, blocked, P, g.thr, g.pcb)
+        got = kern._most_violated((g.a, g.b, n), (full, trapped, inv, closed, blocked), P, (g.thr, g.pcb))
         want = ref.most_violated(g.a, g.b, n, full, trapped, inv, closed, blocked, P, g.thr, g.pcb)
         assert got[0] == want[0] and got[2] == want[2]
         assert got[1] == want[1]
@@ -54,8 +54,8 @@ def test_trapping_search_matches_connected_components(rng):
         trapped = np.zeros(n, dtype=bool)
         seeds = np.flatnonzero(~full)
         got = trapped.copy()
-        kern._trapped_from(seeds, g.indptr, g.nbr, full, got, g.is_outlet, g.key, np.zeros(1, np.int64),
-                           np.zeros(n, np.int64))
+        kern._trapped_from(seeds, (g.indptr, g.nbr, g.is_outlet, g.key), (full, got),
+                           (np.zeros(1, np.int64), np.zeros(n, np.int64)))
         np.testing.assert_array_equal(got, ref.trapped_after(g.indptr, g.nbr, full, trapped, g.is_outlet))
 
 

@@ -108,8 +108,10 @@ def test_unequal_lattice(seed):
     key = {tuple(e): t for t, e in enumerate(lat.throat_conns)}
     t_of = np.array([key[tuple(sorted(e))] for e in idx[net.throat_conns]])
     np.testing.assert_allclose(net.throat_radius, lat.throat_radius[t_of], atol=vs)
-    # pores are numbered from the largest ball down
-    assert np.all(np.diff(net.pore_radius) <= 0)
+    # pores are numbered from the largest ball down (the ball's digital radius orders them; the
+    # measured staircase radius of the default model need not follow the same order)
+    paper = extract_network(lat.image, conductance="paper").network
+    assert np.all(np.diff(paper.pore_radius) <= 0)
     _check_labels(ext, lat.image)
     _conduits_ok(net)
 

@@ -49,13 +49,13 @@ def _bundle(length, axis="z"):
 def test_conduit_boundary_within_voxel_stokes_bounds_and_centre_biased(length, axis):
     b, net, radius_factor = _bundle(length, axis)
     lower, upper = b.permeability_bounds_m2
-    # The extraction's digital-radius excess the tolerance covers: a few per cent, not a free fudge.
-    assert 1.0 < radius_factor < 1.05
+    # The measured radius is the staircase's inscribed one (the nearest solid voxel cube) with its
+    # sub-voxel correction, about the equal-area radius here: a few per cent, not a free fudge.
+    assert 0.9 < radius_factor < 1.05
     k = absolute_permeability(net, axis).k_m2
     k_centre = absolute_permeability(net, axis, boundary="centre").k_m2
-    assert lower <= k <= upper * radius_factor
-    # Measured (2 cores, 2026): k / upper = 1.027 (48 voxels), 1.009 (24); k / k_HP(nominal radii) = 1.021.
-    assert k / upper == pytest.approx(1.0, abs=0.05)
+    assert lower <= k <= upper * max(radius_factor, 1.0)
+    assert k / upper == pytest.approx(1.0, abs=0.05), (k / upper, radius_factor)
     # The centre condition is biased: above the upper bound, by more than the radius excess accounts for
     # (measured 1.20x upper * radius_factor at 48 voxels, 1.72x at 24, with the extraction of 2026-12-01;
     # 1.09x at 48 since the hierarchy's core skipping, which places the tubes' pores differently).
@@ -83,5 +83,5 @@ def test_short_bundle_pores_on_both_faces():
     assert np.any(net.inlet("z") & net.outlet("z"))
     lower, upper = b.permeability_bounds_m2
     res = absolute_permeability(net, "z")
-    assert lower <= res.k_m2 <= upper * radius_factor
+    assert lower <= res.k_m2 <= upper * max(radius_factor, 1.0)
     assert res.info["mass_balance_error"] < 1e-12

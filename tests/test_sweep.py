@@ -22,7 +22,7 @@ import pytest
 from porefsi.case.run import run_case
 from porefsi.cli import main
 from porefsi.errors import ConfigError, InputError
-from porefsi.sweep import load_sweep, member_name, run_sweep, sweep_from_dict
+from porefsi.sweep import Cluster, load_sweep, member_name, run_sweep, sweep_from_dict
 
 #: A base of quick members (the seconds of each exchange step are in checkpoint and summary only).
 BASE = textwrap.dedent("""\
@@ -74,7 +74,7 @@ def serial_ref(tmp_path_factory):
     """The two-rate sweep run serially: the reference of the other tests."""
     folder = tmp_path_factory.mktemp("ref")
     out = folder / "out"
-    res = run_sweep(load_sweep(write_sweep(folder, RATES)), out, serial=True, progress=False)
+    res = run_sweep(load_sweep(write_sweep(folder, RATES)), out, Cluster(serial=True), progress=False)
     assert res.n_completed == 2 and res.n_failed == 0
     return out
 
@@ -185,7 +185,7 @@ def test_failing_member_recorded_others_go_on(tmp_path, capsys):
 def test_rerun_skips_completed_and_resumes_interrupted(tmp_path, serial_ref):
     sweep = load_sweep(write_sweep(tmp_path, RATES))
     out = tmp_path / "out"
-    run_sweep(sweep, out, serial=True, progress=False)
+    run_sweep(sweep, out, Cluster(serial=True), progress=False)
     m0, m1 = sweep.members
     # member 1 stopped after one exchange step (as a killed or Ctrl-C'd run leaves it)
     run_case(m1.case, out / m1.name, overwrite=True, stop_after=1, progress=False)
@@ -193,7 +193,7 @@ def test_rerun_skips_completed_and_resumes_interrupted(tmp_path, serial_ref):
     kept = (out / m0.name / "summary.json").stat().st_mtime_ns
     early = {f: f.stat().st_mtime_ns for f in (out / m1.name / "pores").glob("step_000[01].npz")}
     assert len(early) == 2
-    res = run_sweep(sweep, out, serial=True, progress=False)
+    res = run_sweep(sweep, out, Cluster(serial=True), progress=False)
     assert res.n_skipped == 1 and res.n_completed == 2
     assert (out / m0.name / "summary.json").stat().st_mtime_ns == kept  # not run again
     assert res.records[1]["resumed_from_step"] == 1
@@ -203,13 +203,13 @@ def test_rerun_skips_completed_and_resumes_interrupted(tmp_path, serial_ref):
     other = load_sweep(write_sweep(tmp_path, '"drainage.rate" = [1.25e-13, 5e-11]\n'))
     before = snapshot(out)
     with pytest.raises(InputError, match="holds another sweep"):
-        run_sweep(other, out, serial=True, progress=False)
+        run_sweep(other, out, Cluster(serial=True), progress=False)
     assert snapshot(out) == before
 
 
 def test_local_cluster_equals_serial(tmp_path, serial_ref):
     out = tmp_path / "out"
-    res = run_sweep(load_sweep(write_sweep(tmp_path, RATES)), out, n_workers=2, progress=True)
+    res = run_sweep(load_sweep(write_sweep(tmp_path, RATES)), out, Cluster(n_workers=2), progress=True)
     assert res.n_completed == 2
     workers = {r["worker"] for r in res.records}
     assert all(w and int(w.split(":")[1]) != os.getpid() for w in workers)  # ran in worker processes

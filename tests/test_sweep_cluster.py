@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from porefsi.sweep import load_sweep, run_sweep
+from porefsi.sweep import Cluster, load_sweep, run_sweep
 from tests.test_sweep import results_of, write_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -94,7 +94,8 @@ def cluster(tmp_path):
 def test_scheduler_and_workers_started_by_hand_survive_a_killed_worker(tmp_path, cluster):
     ref_dir = tmp_path / "ref"
     ref_dir.mkdir()
-    run_sweep(load_sweep(write_sweep(ref_dir, RATES, t_end=T_END)), ref_dir / "out", serial=True, progress=False)
+    run_sweep(load_sweep(write_sweep(ref_dir, RATES, t_end=T_END)), ref_dir / "out", Cluster(serial=True),
+              progress=False)
     sweep_file = write_sweep(tmp_path, RATES, t_end=T_END)
     out = tmp_path / "out"
     with open(tmp_path / "sweep.log", "wb") as log:

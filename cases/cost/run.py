@@ -60,8 +60,7 @@ def fluid_only(case) -> dict:
     w, c = lap("image", w0, c0)
     net = extract_network(percolating_cluster(img, case.image.axis).image).network
     w, c = lap("extraction", w, c)
-    res = simulate_drainage(net, coupled_options(case).fluids, rate=case.drainage.rate, t_end=case.drainage.t_end,
-                            axis=case.image.axis)
+    res = simulate_drainage(net, coupled_options(case).fluids, case.drainage, axis=case.image.axis)
     lap("fluid", w, c)
     return {"cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0, "stages_cpu_s": cpu,
             "stages_wall_s": wall, "n_pores": net.n_pores, "n_throats": net.n_throats, "final_sw": float(res.final.sw)}

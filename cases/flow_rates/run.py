@@ -35,7 +35,7 @@ import numpy as np
 
 from porefsi import DrainageSimulator, absolute_permeability, load_case, problem_from_case, smoke_case
 from porefsi.flow import invasion_percolation
-from porefsi.sweep import run_sweep, sweep_from_dict
+from porefsi.sweep import Cluster, run_sweep, sweep_from_dict
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
 from _common import output_dir, parse_args, pyplot, sweep_arguments, write_results  # noqa: E402
@@ -169,8 +169,8 @@ def main(argv=None) -> dict:
         print(f"wrote {HERE / 'sweep.toml'}")
         return {}
     sweep = sweep_from_dict(spec, base_dir=HERE, where="flow_rates sweep")
-    res = run_sweep(sweep, out / "runs", serial=args.serial or (args.smoke and not args.scheduler),
-                    scheduler=args.scheduler, overwrite=not args.resume)
+    res = run_sweep(sweep, out / "runs", Cluster(serial=args.serial or (args.smoke and not args.scheduler),
+                                             scheduler=args.scheduler), overwrite=not args.resume)
     failed = [r["name"] for r in res.records if r["status"] != "completed"]
     if failed:
         raise SystemExit(f"flow_rates: members {failed} failed; see {res.table}")

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import os
 
-for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # numba: see cases/_common.py
     os.environ.setdefault(_v, "1")  # before numpy/numba load: single-thread CPU time is comparable
 
 import json  # noqa: E402

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import os
 
-for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # numba: see cases/_common.py
     os.environ.setdefault(_v, "1")  # before numpy/numba load: single-thread CPU time is comparable
 
 import gc  # noqa: E402
@@ -59,6 +59,7 @@ REF_FILE = HERE / "reference" / "reference.npz"
 EVAL_STRIDE = 6  # evaluation points: reference nodes at multiples of 6 voxels (shared by coarsen 2, 3, 6)
 SAMPLE_DT = 1.0  # s: required output resolution (runs with longer exchange steps are shown, not ranked)
 TOL_ERR, TOL_TIME = 0.01, 0.10  # Pareto tolerances: errors within 1 %, times within 10 % are ties
+AUTO_TOLERANCES = (0.25, 0.3, 0.45, 0.6)  # fidelity = "auto" points on the chart (porefsi.case.fidelity)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -107,6 +108,22 @@ def variants(smoke: bool) -> list[dict]:
     return out
 
 
+def graded_variants(smoke: bool) -> list[dict]:
+    """Graded meshes refined at the predicted invasion (issue 16; docs/solid.md section 1b).
+
+    Run by run.py only (not members of sweep.toml, like ``skip``). Their error is measured like
+    every run's, on the node grid of their fine block with the grid points inside coarse leaves
+    filled from the nearest node: slightly above the finite-element field's own error (0.132
+    against 0.124 for ``graded_3_12``, benchmarks/bench_mesh_graded.py).
+    """
+    if smoke:
+        return []
+    graded = {"mesh": "graded", "refine": "invaded", "grading": 0.5}
+    return [{"name": f"graded_{cf}_{cm}", "knob": "graded mesh", "skip_solves": None,
+             "label": f"graded: {cf}-voxel blocks at the predicted invasion, leaves up to {cm}",
+             "overrides": {"solid": {**graded, "coarsen": cf, "coarsen_max": cm}}} for cf, cm in ((3, 12), (2, 16))]
+
+
 # ---------------------------------------------------------------------------------------------
 # running and comparing
 # ---------------------------------------------------------------------------------------------
@@ -118,8 +135,8 @@ def run_variant(case, skip_solves=None) -> dict:
     try:
         prob = problem_from_case(case)
         run = CoupledRun(prob)
-        if skip_solves is not None:  # not a case-file key: the DPN option set through the API
-            run.sim = DrainageSimulator(prob.network, prob.fluids, rate=case.drainage.rate, axis=case.image.axis,
+        if skip_solves is not None:  # the DPN option drainage.skip_solves, varied here
+            run.sim = DrainageSimulator(prob.network, prob.fluids, case.drainage, axis=case.image.axis,
                                         skip_solves=skip_solves)
         res["U"].append(np.zeros((prob.mesh.n_nodes, 3)))
         for rec in run.steps():
@@ -132,7 +149,8 @@ def run_variant(case, skip_solves=None) -> dict:
                                                          + 1e-9).astype(int) + 1),
                    voxel_size=img.voxel_size, n_nodes=prob.mesh.n_nodes, n_tets=int(len(prob.mesh.tets)),
                    n_dofs=int(prob.model.n_dofs), stage_seconds={**{f"setup_{k}": v for k, v in prob.seconds.items()},
-                                                                 **run.seconds})
+                                                                 **run.seconds},
+                   stage_cpu_seconds={**{f"setup_{k}": v for k, v in prob.cpu_seconds.items()}, **run.cpu_seconds})
     except PorefsiError as exc:
         res["status"] = f"{type(exc).__name__}: {exc}"
     res["cpu_s"] = time.process_time() - c0
@@ -207,9 +225,40 @@ def reference_stale(ref: dict, base, smoke: bool) -> str | None:
     reference rebuilt with ``--rebuild-reference``).
     """
     want = case_to_toml(base.replace(name=f"{base.name}-reference", **reference_overrides(smoke)))
-    if ref.get("case_toml") != want:
+    if _without_fidelity(ref.get("case_toml", "")) != _without_fidelity(want):
         return "its case differs from the reference case of the current case.toml and code"
     return None
+
+
+def _without_fidelity(toml: str) -> str:
+    """Case text without a ``[fidelity]`` section that sets no preset (it changes nothing in the run)."""
+    head, sep, rest = toml.partition("\n[fidelity]\n")
+    if not sep:
+        return toml
+    body, nxt, tail = rest.partition("\n[")
+    if 'preset = "none"' not in body:
+        return toml
+    return head + ("\n[" + tail if nxt else "\n")
+
+
+def auto_variants(base, smoke: bool) -> list[dict]:
+    """``fidelity = "auto"`` at each of :data:`AUTO_TOLERANCES`: the settings it chooses on this image."""
+    from porefsi.case import FIDELITY_KEYS, resolve_fidelity
+
+    out = []
+    for tol in AUTO_TOLERANCES[:1] if smoke else AUTO_TOLERANCES:
+        case, choice = resolve_fidelity(base.replace(fidelity={"preset": "auto", "tolerance": tol}))
+        ov: dict = {}
+        for key in FIDELITY_KEYS:
+            sec, k = key.split(".")
+            if getattr(getattr(case, sec), k) != getattr(getattr(base, sec), k):
+                ov.setdefault(sec, {})[k] = getattr(getattr(case, sec), k)
+        out.append({"name": f"auto{tol:g}", "knob": "auto", "overrides": ov, "skip_solves": None,
+                    "label": f"fidelity auto, tolerance {tol:g} (expected {choice.expected_error_vs_reference:.2f} "
+                             "vs this reference)",
+                    "expected_err_vs_reference": choice.expected_error_vs_reference,
+                    "expected_cpu_s": choice.expected_cpu_s})
+    return out
 
 
 def check_reference(base, ref: dict) -> dict:
@@ -313,7 +362,8 @@ def recommend(rows: list[dict]) -> dict:
 KNOB_STYLE = {"baseline": ("k", "*"), "mesh": ("C0", "o"), "order": ("C1", "s"), "test points": ("C2", "^"),
               "interface": ("C3", "D"), "network update": ("C4", "v"), "exchange step": ("C5", "<"),
               "TDG passes": ("C6", ">"), "integrator": ("C7", "P"), "load rule": ("C8", "X"),
-              "DPN skip": ("C9", "h"), "combined": ("navy", "d")}
+              "DPN skip": ("C9", "h"), "combined": ("navy", "d"), "graded mesh": ("darkgreen", "p"),
+              "auto": ("red", "*")}
 
 
 def plot(rows: list[dict], ref: dict, path: Path) -> None:
@@ -330,7 +380,11 @@ def plot(rows: list[dict], ref: dict, path: Path) -> None:
         ax.scatter(r["cpu_s"], r["err_field"], c="none" if hollow else col, marker=mk,
                    s=160 if r["knob"] == "baseline" else 55, edgecolors="k" if r["pareto"] else col,
                    linewidths=1.2, label=lab, zorder=3)
-        if r["pareto"] or r["knob"] in ("baseline", "mesh", "order", "combined") or r["name"] == "update_reextract":
+        labelled = ("baseline", "mesh", "order", "combined", "graded mesh")
+        if r["knob"] == "auto":
+            ax.annotate(f"{r['name']} (exp. {r['expected_err_vs_reference']:.2f})", (r["cpu_s"], r["err_field"]),
+                        fontsize=6.5, xytext=(3, -9), textcoords="offset points", color="red")
+        elif r["pareto"] or r["knob"] in labelled or r["name"] == "update_reextract":
             ax.annotate(r["name"], (r["cpu_s"], r["err_field"]), fontsize=6.5, xytext=(3, 3),
                         textcoords="offset points")
     fr = sorted([r for r in ok if r["pareto"]], key=lambda r: r["cpu_s"])
@@ -446,14 +500,15 @@ def main(argv=None) -> int:
         ref["check"] = check_reference(base, ref)
         save_reference(ref, ref_path)
         print(f"check: {ref['check']}", flush=True)
-    vs = variants(args.smoke)
+    vs = variants(args.smoke) + graded_variants(args.smoke) + auto_variants(base, args.smoke)
     if args.only:
         vs = [v for v in vs if v["name"] == "baseline" or v["name"] in args.only]
     rows, base_res = [], None
     for v in vs:
         case = base.replace(name=f"{base.name}-{v['name']}", **v["overrides"])
         res = run_variant(case, v["skip_solves"])
-        row = {k: v[k] for k in ("name", "knob", "label", "overrides")}
+        row = {k: v[k] for k in ("name", "knob", "label", "overrides", "expected_err_vs_reference",
+                                  "expected_cpu_s") if k in v}
         row.update(status=res["status"], cpu_s=res["cpu_s"], wall_s=res["wall_s"], n_nodes=res.get("n_nodes"),
                    n_tets=res.get("n_tets"), n_dofs=res.get("n_dofs"), stage_seconds=res.get("stage_seconds"))
         if res["status"] == "ok":
@@ -465,6 +520,9 @@ def main(argv=None) -> int:
               f"err {row.get('err_field', float('nan')):.4f}  dbase {row.get('diff_vs_baseline', float('nan')):.1e}",
               flush=True)
         del res
+    if args.only and (out / "results.json").is_file():  # the other runs of the last full study stay
+        ran = {r["name"] for r in rows}
+        rows = [r for r in json.loads((out / "results.json").read_text())["runs"] if r["name"] not in ran] + rows
     for r in rows:  # the scene needs outputs every SAMPLE_DT (the paper's figures at 1, 3, 5, 15 s)
         r["meets_output_resolution"] = _exchange_dt(base, r["overrides"]) <= SAMPLE_DT + 1e-12
     ok = [r for r in rows if r["status"] == "ok" and r["meets_output_resolution"]]

@@ -33,7 +33,7 @@ import numpy as np
 
 from porefsi import MILLIDARCY as MD
 from porefsi import load_case, plot, problem_from_case, read_pore_steps, smoke_case
-from porefsi.sweep import load_sweep, run_sweep, sweep_from_dict
+from porefsi.sweep import Cluster, load_sweep, run_sweep, sweep_from_dict
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
 from _common import output_dir, parse_args, pyplot, sweep_arguments, write_results  # noqa: E402
@@ -177,8 +177,8 @@ def main(argv=None) -> int:
     if args.smoke:
         case = smoke_case(case)
     sweep = the_sweep(args.smoke)
-    res = run_sweep(sweep, out / "runs", serial=args.serial or (args.smoke and not args.scheduler),
-                    scheduler=args.scheduler, overwrite=not args.resume)
+    res = run_sweep(sweep, out / "runs", Cluster(serial=args.serial or (args.smoke and not args.scheduler),
+                                             scheduler=args.scheduler), overwrite=not args.resume)
     failed = [r["name"] for r in res.records if r["status"] != "completed"]
     if failed:
         raise SystemExit(f"strain_rate: members {failed} failed; see {res.table}")

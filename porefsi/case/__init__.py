@@ -3,7 +3,8 @@
 :func:`load_case` reads a TOML case file into a :class:`Case`; :func:`problem_from_case` reads its
 image and builds the coupled problem (through :func:`coupled_options`, the case as the
 coupling's option objects); :func:`run_case` runs it into a run directory with checkpoints,
-resume and figures.
+resume and figures. :func:`resolve_fidelity` applies a ``[fidelity]`` preset (``auto``: settings
+chosen for an error tolerance or a CPU budget from a calibrated model; docs/fidelity.md).
 """
 
 from porefsi._lazy import exports
@@ -21,6 +22,10 @@ _EXPORTS = {
     "FluidsConfig": "porefsi.case.config",
     "InterfaceConfig": "porefsi.case.config",
     "OutputConfig": "porefsi.case.config",
+    "FidelityConfig": "porefsi.case.config",
+    "FIDELITY_KEYS": "porefsi.case.config",
+    "resolve_fidelity": "porefsi.case.fidelity",
+    "FidelityChoice": "porefsi.case.fidelity",
     "problem_from_case": "porefsi.case.problem",
     "coupled_options": "porefsi.case.problem",
     "load_case_image": "porefsi.case.problem",
@@ -41,6 +46,10 @@ __all__ = [
     "FluidsConfig",
     "InterfaceConfig",
     "OutputConfig",
+    "FidelityConfig",
+    "FIDELITY_KEYS",
+    "resolve_fidelity",
+    "FidelityChoice",
     "problem_from_case",
     "coupled_options",
     "load_case_image",

@@ -34,6 +34,7 @@ __all__ = [
     "CouplingConfig",
     "NetworkConfig",
     "OutputConfig",
+    "FidelityConfig",
     "load_case",
     "case_from_dict",
     "case_to_dict",
@@ -110,6 +111,35 @@ class OutputConfig:
     vtk: bool = _f(True, "write ParaView series (.pvd + .vtu solid, .vtp network)")
 
 
+#: The settings a fidelity preset chooses (``[fidelity]``; :mod:`porefsi.case.fidelity`). A case
+#: file's own value of one of them wins over the preset: it is listed in ``fidelity.keep``.
+FIDELITY_KEYS = ("solid.coarsen", "interface.method", "interface.n_test_points", "coupling.integrator",
+                 "coupling.tdg_iterations", "coupling.tdg_load_rule", "network.update", "drainage.scheme",
+                 "solid.response")
+
+
+@dataclasses.dataclass(frozen=True)
+class FidelityConfig:
+    """How much model the run gets (docs/fidelity.md).
+
+    A preset chooses mesh, interface, integrator, network update, drainage scheme and solid
+    response; a key the case file sets itself wins over the preset (it is listed in ``keep``). A
+    top-level ``fidelity = "auto"`` is short for ``[fidelity] preset = "auto"``.
+    """
+
+    preset: str = _f("none", "none = the case's keys as they are (default); auto = chosen from the calibrated "
+                     "error model for a target (tolerance or budget_s); fast = coarsen 6; accurate = coarsen 3; "
+                     "paper = the seed paper's methods (hull, TDG left rule, re-extraction)",
+                     choices=("none", "auto", "fast", "accurate", "paper"))
+    tolerance: float | None = _f(None, "auto: target relative L2 error of the displacement (as in the "
+                                 "speed-accuracy study), e.g. 0.3", limits=Limits(0.0, 10.0, lo_open=True),
+                                 optional=True)
+    budget_s: float | None = _f(None, "auto: CPU-time budget of the run (one thread), the most accurate "
+                                "setting expected to fit", limits=_POSITIVE, unit="s", optional=True)
+    keep: list = _f([], "keys the preset leaves as the case sets them (filled from the case file's own keys; "
+                    f"any of {', '.join(FIDELITY_KEYS)})", items="keys")
+
+
 _SECTIONS: dict[str, type] = {
     "image": ImageConfig,
     "fluids": FluidsConfig,
@@ -119,6 +149,7 @@ _SECTIONS: dict[str, type] = {
     "network": NetworkConfig,
     "coupling": CouplingConfig,
     "output": OutputConfig,
+    "fidelity": FidelityConfig,
 }
 
 
@@ -134,10 +165,15 @@ class Case:
     network: NetworkConfig = dataclasses.field(default_factory=NetworkConfig)
     coupling: CouplingConfig = dataclasses.field(default_factory=CouplingConfig)
     output: OutputConfig = dataclasses.field(default_factory=OutputConfig)
+    fidelity: FidelityConfig = dataclasses.field(default_factory=FidelityConfig)
     name: str = "default"
 
     def replace(self, **sections) -> Case:
-        """Return a copy with whole sections or ``section={key: value}`` dicts replaced (validated)."""
+        """Return a copy with whole sections or ``section={key: value}`` dicts replaced (validated).
+
+        A fidelity-controlled key given in a ``section={key: value}`` dict joins ``fidelity.keep``
+        (the caller set it: a preset leaves it alone).
+        """
         d = case_to_dict(self)
         for sec, val in sections.items():
             if sec == "name":
@@ -146,6 +182,8 @@ class Case:
                 d.setdefault(sec, {}).update(val)
             else:
                 d[sec] = dataclasses.asdict(val)
+        given = _fidelity_keys({s: v for s, v in sections.items() if isinstance(v, dict) and s != "fidelity"})
+        d["fidelity"]["keep"] = sorted(set(d["fidelity"]["keep"]) | set(given))
         return case_from_dict(d, name=d.get("name", self.name))
 
 
@@ -160,6 +198,7 @@ def case_from_dict(data: dict, *, name: str = "case", where: str = "case") -> Ca
     if not isinstance(data, dict):
         raise ConfigError(f"{where}: expected a table of sections, got {type(data).__name__}")
     kwargs: dict[str, Any] = {}
+    data = _with_fidelity_keep(data)
     for sec, val in data.items():
         if sec == "name":
             if not isinstance(val, str):
@@ -184,7 +223,39 @@ def case_from_dict(data: dict, *, name: str = "case", where: str = "case") -> Ca
     return case
 
 
+def _fidelity_keys(data: dict) -> list[str]:
+    """The fidelity-controlled keys (``section.key``) that ``data`` (sections of dicts) sets."""
+    return sorted(f"{sec}.{k}" for sec, val in data.items() if isinstance(val, dict) for k in val
+                  if f"{sec}.{k}" in FIDELITY_KEYS)
+
+
+def _with_fidelity_keep(data: dict) -> dict:
+    """``data`` with ``fidelity = "preset"`` expanded and ``fidelity.keep`` filled from its own keys."""
+    fid = data.get("fidelity", {})
+    if isinstance(fid, str):
+        fid = {"preset": fid}
+    if not isinstance(fid, dict) or "keep" in fid:
+        return data if fid is data.get("fidelity", {}) else {**data, "fidelity": fid}
+    return {**data, "fidelity": {**fid, "keep": _fidelity_keys(data)}}
+
+
+def _check_fidelity(fc: FidelityConfig, where: str) -> None:
+    bad = [k for k in fc.keep if k not in FIDELITY_KEYS]
+    if bad:
+        raise ConfigError(f"{where}: fidelity.keep names {bad[0]!r}, not a key a preset chooses; use any of "
+                          f"{', '.join(FIDELITY_KEYS)}")
+    if fc.tolerance is not None and fc.budget_s is not None:
+        raise ConfigError(f"{where}: give fidelity.tolerance or fidelity.budget_s, not both (auto meets one target)")
+    if fc.preset == "auto" and fc.tolerance is None and fc.budget_s is None:
+        raise ConfigError(f"{where}: fidelity.preset = 'auto' needs a target: set fidelity.tolerance (relative "
+                          "displacement error, e.g. 0.3) or fidelity.budget_s (CPU seconds)")
+    if fc.preset != "auto" and (fc.tolerance is not None or fc.budget_s is not None):
+        raise ConfigError(f"{where}: fidelity.tolerance and fidelity.budget_s are targets of preset 'auto' (got "
+                          f"preset {fc.preset!r}); set fidelity.preset = 'auto' or drop the target")
+
+
 def _cross_check(case: Case, where: str) -> None:
+    _check_fidelity(case.fidelity, where)
     if case.interface.throat_forces and case.interface.method != "hull":
         raise ConfigError(
             f"{where}: interface.throat_forces = true needs interface.method = 'hull' (got "

@@ -59,8 +59,11 @@ def interface_options(case: Case) -> HullOptions | TractionOptions:
     if ic.method == "hull":
         return HullOptions(n_test_points=ic.n_test_points, tolerance=ic.tolerance, seed=ic.seed,
                            throat_forces=ic.throat_forces)
-    # a coarsened mesh's wall facets sit up to a block (coarsen voxels) from the pore voxels
-    return TractionOptions(max_steps=max(4, 2 * case.solid.coarsen))
+    # a coarsened mesh's wall facets sit up to a block (coarsen voxels) from the pore voxels; a graded mesh
+    # refined near the invaded pores only has walls of its coarsest leaves elsewhere
+    sc = case.solid
+    block = sc.coarsen_max if sc.mesh == "graded" and sc.refine == "invaded" else sc.coarsen
+    return TractionOptions(max_steps=max(4, 2 * max(block, sc.coarsen)))
 
 
 def coupled_options(case: Case) -> CoupledOptions:

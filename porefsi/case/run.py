@@ -46,6 +46,7 @@ from porefsi.case import _outputs as _out
 from porefsi.case import _rundir as _rd
 from porefsi.case._heartbeat import Heartbeat
 from porefsi.case.config import Case, case_to_dict, case_to_toml
+from porefsi.case.fidelity import fidelity_summary, resolve_fidelity
 from porefsi.case.problem import problem_from_case
 from porefsi.coupling.loop import CoupledRun
 from porefsi.coupling.records import TIMESERIES_COLUMNS, ExchangeRecord
@@ -206,6 +207,7 @@ def run_case(case: Case, out: str | Path | None = None, *, on_record: Callable[[
     """
     ctl = RunControl(**control)
     clock = _RunClock(time.perf_counter(), time.process_time())
+    case = resolve_fidelity(case)[0]  # a [fidelity] preset: its settings (a resolved case resolves to itself)
     out = rundir.check_output_dir(Path(out if out is not None else case.output.dir))
     # 1. read and validate everything; nothing in ``out`` changes before the lock below
     saved = None
@@ -408,7 +410,7 @@ def _write_summary(out, case, sofar: _Sofar, clock: _RunClock, status, error, fi
         summary = {"status": status, "error": error, "case": case.name, "porefsi_version": __version__,
                    "wall_seconds": wall_seconds, "wall_seconds_this_process": this_process,
                    "cpu_seconds": clock.cpu_before + cpu_this, "cpu_seconds_this_process": cpu_this,
-                   "n_exchange_steps": 0, "figures": figures}
+                   "n_exchange_steps": 0, "figures": figures, **fidelity_summary(case)}
         results.write_json(out / "summary.json", summary)
         return json.loads(json.dumps(results.jsonable(summary)))
     p = run.problem
@@ -452,6 +454,7 @@ def _write_summary(out, case, sofar: _Sofar, clock: _RunClock, status, error, fi
         "figures": figures,
         "resume_command": _rd.resume_command(out) if status != "completed" and (out / _rd.CHECKPOINT).is_file()
         else None,
+        **fidelity_summary(case),
     }
     results.write_json(out / "summary.json", summary)
     return json.loads(json.dumps(results.jsonable(summary)))

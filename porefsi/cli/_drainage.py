@@ -87,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
     atomically at the end.
     """
     from porefsi.cli._extract import network_from_args
-    from porefsi.flow.drainage import DrainageSimulator, simulate_drainage
+    from porefsi.flow.drainage import DrainageOptions, DrainageSimulator, RunControl, simulate_drainage
     from porefsi.flow.fluids import Fluids
     from porefsi.io import rundir
 
@@ -112,21 +112,21 @@ def run(args: argparse.Namespace) -> int:
     times = np.linspace(0, args.t_end, args.snapshots + 1)[1:] if args.snapshots else None
     tty = sys.stderr.isatty()
     every = args.progress_every or (REPORT_EVERY_TTY if tty else REPORT_EVERY)
-    run = dict(rate=args.rate, t_end=args.t_end, times=times, axis=args.axis, scheme=args.scheme,
-               report=_progress(args.t_end, saved=False), report_every=every)
+    options = DrainageOptions(rate=args.rate, t_end=args.t_end, scheme=args.scheme)  # argparse checked each
+    report = dict(report=_progress(args.t_end, saved=False), report_every=every)
     if out is None:
-        res = simulate_drainage(net, fluids, **run)
+        res = simulate_drainage(net, fluids, options, axis=args.axis, times=times, run=RunControl(**report))
         return _report(args, net, res, None, t0)
     if not args.resume:  # fails here (no spanning path, bad options) before the folder is touched
-        DrainageSimulator(net, fluids, rate=args.rate, axis=args.axis, scheme=args.scheme)
+        DrainageSimulator(net, fluids, options, axis=args.axis)
     with rundir.lock(out), rundir.output_errors(out):
         if not args.resume:
             _refuse_existing(out, args.overwrite)  # again: a run may have finished there meanwhile
             _clear_outputs(out)
         # a resumed run reads and checks its checkpoint before it changes anything
-        res = simulate_drainage(net, fluids, **run, checkpoint=out / CHECKPOINT,
-                                checkpoint_every=args.checkpoint_every, resume=args.resume,
-                                progress=_progress(args.t_end))
+        control = RunControl(checkpoint=out / CHECKPOINT, checkpoint_every=args.checkpoint_every,
+                             resume=args.resume, progress=_progress(args.t_end), **report)
+        res = simulate_drainage(net, fluids, options, axis=args.axis, times=times, run=control)
         _write_outputs(out, net, fluids, args, res)
     return _report(args, net, res, out, t0)
 
@@ -221,7 +221,9 @@ def _progress(t_end: float, saved: bool = True):
     """A callback printing one progress line on stderr (after a checkpoint, or periodically)."""
     def report(sim, seconds):
         st = sim._engine
-        print(f"drainage: t = {st.t:.4g} / {t_end:g} s, Sw = {st.sw():.4f}, P_in = {_last_inlet_pressure(st):.5g} Pa, "
+        p_in = _last_inlet_pressure(st)
+        p_txt = f"{p_in:.5g} Pa" if np.isfinite(p_in) else "- (no pressure solve yet)"
+        print(f"drainage: t = {st.t:.4g} / {t_end:g} s, Sw = {st.sw():.4f}, P_in = {p_txt}, "
               f"{st.n_events} events, {st.n_fills} pores full, {seconds:.0f} s wall"
               f"{' (checkpoint saved)' if saved else ''}", file=sys.stderr, flush=True)
     return report

@@ -18,13 +18,13 @@ EXIT_MEMBERS_FAILED = 1
 
 def run(args: argparse.Namespace) -> int:
     """Load and check the sweep, run it, print the counts; exit 1 if a member failed."""
-    from porefsi.sweep import load_sweep, run_sweep
+    from porefsi.sweep import Cluster, load_sweep, run_sweep
 
     sweep = load_sweep(args.sweep)
-    res = run_sweep(sweep, args.output, serial=args.serial, scheduler=args.scheduler,
-                    scheduler_file=args.scheduler_file, n_workers=args.workers, overwrite=args.overwrite,
-                    retries=args.retries, force=args.force, figures=False if args.no_figures else None,
-                    progress=False if args.quiet else None)
+    cluster = Cluster(serial=args.serial, scheduler=args.scheduler, scheduler_file=args.scheduler_file,
+                      n_workers=args.workers, retries=args.retries)
+    res = run_sweep(sweep, args.output, cluster, overwrite=args.overwrite, force=args.force,
+                    figures=False if args.no_figures else None, progress=False if args.quiet else None)
     failed = [r for r in res.records if r is None or r["status"] != "completed"]
     summary = {"members": len(res.records), "completed": res.n_completed, "failed": res.n_failed,
                "skipped_already_completed": res.n_skipped, "table": str(res.table),

@@ -37,13 +37,16 @@ def _bin_points(points, lo, cell, dims):
 
 
 @jit
-def _hull_members(points, order, start, lo, cell, dims, centres, reach, planes, plane_ptr, eps,
-                  out_pore, out_node):
+def _hull_members(grid, hulls, out_pore, out_node):
     """Points inside each enlarged hull ``n . x + d <= eps`` (all planes of that pore).
 
+    ``grid = (points, order, start, lo, cell, dims)`` is the binned point cloud
+    (:func:`_bin_points`), ``hulls = (centres, reach, planes, plane_ptr, eps)`` the pores' hulls.
     Candidate points come from the grid cells overlapping the ball ``|x - c| <= reach``.
     When ``out_pore`` is empty only counts are returned (first pass); otherwise it is filled.
     """
+    points, order, start, lo, cell, dims = grid
+    centres, reach, planes, plane_ptr, eps = hulls
     count = 0
     fill = out_pore.shape[0] > 0
     for i in range(centres.shape[0]):

@@ -204,7 +204,7 @@ def hull_members(points, centres, radii, test_points, test_ptr, tolerance):
     dims = np.maximum(np.ceil(span / cell).astype(np.int64), 1)
     order, start = _kernels._bin_points(points, lo, cell, dims)
     empty = np.zeros(0, np.int64)
-    args = (points, order, start, lo, cell, dims, centres, reach, planes, plane_ptr, eps)
+    args = ((points, order, start, lo, cell, dims), (centres, reach, planes, plane_ptr, eps))
     n = _kernels._hull_members(*args, empty, empty)
     pore = np.empty(n, np.int64)
     node = np.empty(n, np.int64)

@@ -143,8 +143,7 @@ class CoupledRun:
         self.step_index = 0
         self.t = 0.0
         self.current = NetworkState(problem.network, problem.interface, problem.extraction.labels)
-        self.sim = DrainageSimulator(problem.network, problem.fluids, rate=opts.drainage.rate, axis=opts.axis,
-                                     scheme=opts.drainage.scheme)
+        self.sim = DrainageSimulator(problem.network, problem.fluids, opts.drainage, axis=opts.axis)
         self.model = problem.model
         self.u = np.zeros(self.model.n_dofs)
         self.v = np.zeros(self.model.n_dofs)

@@ -1,7 +1,8 @@
 """The option objects of a coupled simulation: small frozen dataclasses, validated when made.
 
 Each class is one section of a case file (:mod:`porefsi.case.config` reads the TOML into these
-very classes), but nothing here knows of files: a Python user builds them directly. Defaults
+very classes; ``[drainage]`` is the flow layer's :class:`~porefsi.flow.drainage.DrainageOptions`,
+re-exported here), but nothing here knows of files: a Python user builds them directly. Defaults
 are the seed paper's table 2 set-up; every field's unit, bounds and meaning are declared next to
 it (:func:`porefsi._schema.option`), bounds of physical quantities taken from the physics
 classes (:class:`~porefsi.solid.materials.Material`).
@@ -21,6 +22,7 @@ import numpy as np
 
 from porefsi._schema import Limits, option, validate
 from porefsi.errors import ConfigError
+from porefsi.flow.drainage import DrainageOptions
 from porefsi.flow.fluids import Fluids
 from porefsi.solid.materials import GRAIN_DENSITY, Material
 
@@ -33,20 +35,6 @@ __all__ = ["DrainageOptions", "SolidOptions", "NetworkOptions", "CouplingOptions
            "CoupledOptions"]
 
 _POSITIVE = Limits(0.0, None, lo_open=True)
-
-
-@dataclasses.dataclass(frozen=True)
-class DrainageOptions:
-    """Injection of the non-wetting fluid."""
-
-    rate: float = option(1.25e-13, "volumetric injection rate (paper case A)", limits=_POSITIVE, unit="m^3/s")
-    t_end: float = option(20.0, "injection time (paper: 20 s)", limits=_POSITIVE, unit="s")
-    scheme: str = option("exact", "exact = a pressure solve after every event (the reference); adaptive = "
-                         "quasi-static fills in certified batches, local pressure updates elsewhere (docs/drainage.md)",
-                         choices=("exact", "adaptive"))
-
-    def __post_init__(self):
-        validate(self, "drainage")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,6 +68,17 @@ class SolidOptions:
     response_tol: float = option(1e-3, "linear/auto: tolerance on the estimated relative displacement error of "
                                  "the linearisation (one Newton correction / max |u|)",
                                  limits=Limits(0.0, 1.0, lo_open=True, hi_open=True))
+    mesh: str = option("uniform", "uniform = every block coarsen voxels across; graded = blocks of coarsen voxels "
+                       "near the refined pores, leaves of 2, 4, ... x coarsen (up to coarsen_max) away from them, "
+                       "2:1 balanced and conforming (docs/solid.md)", choices=("uniform", "graded"))
+    coarsen_max: int = option(16, "graded mesh: largest leaf edge (voxels; leaves are coarsen x a power of 2)",
+                              limits=Limits(1))
+    grading: float = option(1.0, "graded mesh: a leaf of edge s blocks lies more than grading x s blocks from the "
+                            "refined pores (smaller: coarser sooner)", limits=_POSITIVE)
+    refine: str = option("walls", "graded mesh: where it stays at coarsen: walls = every pore wall (coarse only "
+                         "inside grains); invaded = the pores invasion percolation fills with twice the injected "
+                         "volume (drainage.rate x drainage.t_end), where the fluid load sits",
+                         choices=("walls", "invaded"))
 
     def __post_init__(self):
         validate(self, "solid")

@@ -9,21 +9,26 @@ from __future__ import annotations
 import dataclasses
 import warnings
 
+import numpy as np
+
 from porefsi.coupling.interface import Interface
 from porefsi.coupling.options import CoupledOptions, SolidOptions
 from porefsi.coupling.timing import StageClock
 from porefsi.flow.fluids import Fluids
+from porefsi.flow.invasion import invasion_percolation
 from porefsi.image.ops import percolating_cluster
 from porefsi.image.voxel_image import VoxelImage, axis_index
 from porefsi.network.extract import Extraction, extract_network
 from porefsi.network.network import Network
 from porefsi.solid.bc import check_load_path, uniaxial_bcs
 from porefsi.solid.footprint import choose_linear_solver
+from porefsi.solid.graded import mesh_graded
 from porefsi.solid.materials import make_material
 from porefsi.solid.mesh import MeshResult, SolidMesh, mesh_solid
 from porefsi.solid.model import SolidModel
 
-__all__ = ["CoupledProblem", "build_problem", "build_solid", "extract_flow_network", "SolverChoiceWarning"]
+__all__ = ["CoupledProblem", "build_problem", "build_solid", "extract_flow_network", "SolverChoiceWarning",
+           "predicted_invasion"]
 
 
 class SolverChoiceWarning(UserWarning):
@@ -95,8 +100,29 @@ def extract_flow_network(image: VoxelImage, axis: str, conductance: str) -> Extr
     return extract_network(percolating_cluster(image, axis).image, conductance=conductance)
 
 
-def build_solid(image: VoxelImage, options: SolidOptions) -> tuple[MeshResult, SolidModel]:
+def predicted_invasion(extraction: Extraction, options: CoupledOptions, volume_factor: float = 2.0) -> np.ndarray:
+    """Pore voxels (bool, image shape) where the fluid load will sit, predicted before the run.
+
+    The pores that invasion percolation fills first with ``volume_factor`` times the injected
+    volume (``drainage.rate * drainage.t_end``): the graded mesh's ``refine = "invaded"``. At
+    the paper's capillary numbers the dynamic invasion follows the invasion-percolation order
+    (docs/drainage.md).
+    """
+    net = extraction.network
+    ip = invasion_percolation(net, options.fluids, axis=options.axis)
+    order = np.argsort(np.where(ip.pore_sequence >= 0, ip.pore_sequence, np.iinfo(np.int64).max))
+    target = volume_factor * options.drainage.rate * options.drainage.t_end
+    n = int(np.searchsorted(np.cumsum(net.pore_volume[order]), target)) + 1
+    pores = order[:min(n, int(np.count_nonzero(ip.pore_sequence >= 0)))]
+    return np.isin(extraction.labels, pores)
+
+
+def build_solid(image: VoxelImage, options: SolidOptions, refine: np.ndarray | None = None
+                ) -> tuple[MeshResult, SolidModel]:
     """The solid mesh of ``image`` and its model with the uniaxial loading frame of ``options``.
+
+    ``refine``: the voxels a graded mesh (``options.mesh = "graded"``) resolves at ``coarsen``
+    (default: every pore voxel); ignored by the uniform mesh.
 
     ``solid.linear_solver = "direct"`` on a system too large to factorise (above
     :data:`~porefsi.solid.footprint.DIRECT_MAX_DOFS` free dofs, or a factor that would not fit in
@@ -109,7 +135,11 @@ def build_solid(image: VoxelImage, options: SolidOptions) -> tuple[MeshResult, S
         A strain-rate load (``strain_rate > 0``) on a sample whose solid does not join the two
         load faces.
     """
-    mres = mesh_solid(image, coarsen=options.coarsen, support_axis=options.load_axis)
+    if options.mesh == "graded":
+        mres = mesh_graded(image, coarsen=options.coarsen, coarsen_max=options.coarsen_max, grading=options.grading,
+                           refine=refine, support_axis=options.load_axis)
+    else:
+        mres = mesh_solid(image, coarsen=options.coarsen, support_axis=options.load_axis)
     material = make_material(options.material, E=options.E, nu=options.nu, density=options.density)
     ax = axis_index(options.load_axis)
     if options.strain_rate != 0:
@@ -138,7 +168,8 @@ def build_problem(image: VoxelImage, options: CoupledOptions | None = None) -> C
     with clock("extraction"):
         ex = extract_flow_network(image, options.axis, options.network.conductance)
     with clock("mesh"):
-        mres, model = build_solid(image, options.solid)
+        graded_invaded = options.solid.mesh == "graded" and options.solid.refine == "invaded"
+        mres, model = build_solid(image, options.solid, predicted_invasion(ex, options) if graded_invaded else None)
     with clock("interface_build"):
         itf = options.interface.build(ex.network, ex.labels, mres.mesh, voxel_size=image.voxel_size,
                                       origin=image.origin, model=model)

@@ -39,6 +39,12 @@ import scipy.sparse.linalg as spla
 from porefsi.flow import _kernels as kern
 from porefsi.flow._drainage_engine import Engine
 from porefsi.flow._drainage_graph import DrainageGraph
+from porefsi.flow._drainage_options import (
+    DEFAULT_HOPS,
+    DEFAULT_LOCAL_MENISCI,
+    DEFAULT_LOCAL_SOLVES,
+    DEFAULT_TIE_TOLERANCE,
+)
 
 __all__ = ["AdaptiveEngine", "DEFAULT_LOCAL_SOLVES", "DEFAULT_HOPS", "DEFAULT_LOCAL_MENISCI"]
 
@@ -49,10 +55,6 @@ _SAFETY = 1e-9
 #: uncertified step is the exact scheme's event, with its own per-jump skip test).
 _MAX_BACKOFF = 32
 
-#: Defaults of the knobs (see docs/drainage.md, "Adaptive scheme", for the measurements).
-DEFAULT_LOCAL_SOLVES = 8
-DEFAULT_HOPS = 3
-DEFAULT_LOCAL_MENISCI = 8
 
 _RES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -80,20 +82,25 @@ class AdaptiveEngine(Engine):
         As for the exact engine: a jump that no batch certified still skips its solve when the
         exact scheme's one-path bound allows (measured: that bound, with the current wetting
         region, certifies more jumps than the batch bound, which must hold for the batch's end).
+    local : (int, int, int, float)
+        ``(local_solves, hops, local_menisci, tie_tolerance)``: local solves allowed between two
+        global ones (0: every solve is global), radius in throats of the wetting patches of a local
+        solve, most active menisci for a local solve, and the relative band by which the
+        certificate's bound may exceed the next threshold (0: the rigorous certificate; > 0:
+        near-ties are filled in invasion-percolation order, an approximation measured in
+        docs/drainage.md).
     batch : int
         Most fills predicted (and certified) per batch; cost only, never the outcome.
-    hops : int
-        Radius, in throats, of the wetting patches of a local solve.
-    local_solves : int
-        Local solves allowed between two global ones (0: every solve is global).
     """
 
     def __init__(self, graph: DrainageGraph, rate: float | None, inlet_pressure: float | None,
-                 solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None,
-                 batch: int = 64, hops: int = DEFAULT_HOPS, local_solves: int = DEFAULT_LOCAL_SOLVES,
-                 local_menisci: int = DEFAULT_LOCAL_MENISCI):
+                 solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None, *,
+                 local: tuple = (DEFAULT_LOCAL_SOLVES, DEFAULT_HOPS, DEFAULT_LOCAL_MENISCI, DEFAULT_TIE_TOLERANCE),
+                 batch: int = 64):
         super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=skip_solves,
                          max_active_set_iter=max_active_set_iter)
+        local_solves, hops, local_menisci, tie = local
+        self.margin = 1.0 - _SAFETY + float(tie)  # certified: bound < margin x the next threshold
         self.max_menisci = int(local_menisci)
         self.batch = int(batch)
         self.hops = int(hops)
@@ -279,7 +286,7 @@ class AdaptiveEngine(Engine):
                     heapq.heappush(heap, (float(g.pcb[y] if self.inv[ee] else g.thr[ee]), ee))
             seeds = nb[~full[nb] & ~trapped[nb]]
             if seeds.size:
-                kern._trapped_from(seeds, g.indptr, g.nbr, full, trapped, g.is_outlet, g.key, stamp, mark)
+                kern._trapped_from(seeds, (g.indptr, g.nbr, g.is_outlet, g.key), (full, trapped), (stamp, mark))
         if seq:
             full[seq[-1][1]] = True
         return seq, ~full & ~trapped
@@ -292,7 +299,7 @@ class AdaptiveEngine(Engine):
             return 0
         self._sync_dn()
         e, x, nxt = seq[0]
-        if not self._bound(e, x, 0.0) < nxt * (1.0 - _SAFETY):  # fails without its wetting part
+        if not self._bound(e, x, 0.0) < nxt * self.margin:  # fails without its wetting part
             return 0
         self.n_batches += 1
         dw, _ = kern._dijkstra_to_outlet(g.indptr, g.nbr, self._nbr_res, usable, g.out_res_w)
@@ -304,7 +311,7 @@ class AdaptiveEngine(Engine):
             m = usable[nb]
             if m.any():
                 rw = min(rw, float(np.min(self._nbr_res[lo:hi][m] + dw[nb[m]])))
-            if not self._bound(e, x, rw) < nxt * (1.0 - _SAFETY):
+            if not self._bound(e, x, rw) < nxt * self.margin:
                 break
             self._certified_jump(e, x)
             Engine.step(self, t_target)  # the fill, all of Q into x (or up to t_target)

@@ -21,8 +21,13 @@ from pathlib import Path
 import numpy as np
 
 from porefsi.errors import InputError, PorefsiError
+from porefsi.flow._drainage_options import DrainageOptions
+from porefsi.flow._drainage_simulator import ROW_COLUMNS, DrainageSimulator
+from porefsi.flow.fluids import Fluids
+from porefsi.flow.state import FlowState
 from porefsi.io import interrupt, plain
 from porefsi.io.results import load_checkpoint, save_checkpoint
+from porefsi.network.network import Network
 
 __all__ = ["fingerprint", "save", "load", "deferred_interrupt", "FORMAT", "simulator_state",
            "simulator_from_state"]
@@ -39,8 +44,8 @@ _ENGINE_DERIVED = frozenset({"g", "solver", "rate", "p_fixed", "skip_solves", "m
 _SOLVER_DERIVED = frozenset({"_ml", "_ml_iters", "_base", "_saved_base"})
 #: Every attribute of a DrainageSimulator this module knows how to store.
 _SIM_ATTRS = frozenset({"net", "fluids", "axis", "rate", "inlet_pressure_bc", "graph", "_opts", "_engine",
-                        "last_remap"})
-_ROW_WIDTH = 10  # columns of the engine's per-event rows (drainage._ROW_COLUMNS)
+                        "last_remap", "options"})
+_ROW_WIDTH = len(ROW_COLUMNS)  # columns of the engine's per-event rows
 
 
 def fingerprint(net, fluids, settings: dict) -> str:
@@ -86,6 +91,7 @@ def simulator_state(sim, prefix: str, arrays: dict, meta: dict) -> None:
     s = e.solver
     plain.put_dataclass(f"{prefix}.net", sim.net, arrays, meta)
     plain.put_dataclass(f"{prefix}.fluids", sim.fluids, arrays, meta)
+    plain.put_dataclass(f"{prefix}.options", sim.options, arrays, meta)
     plain.put_fields(f"{prefix}.sim", {"axis": int(sim.axis), "rate": sim.rate, "inlet_pressure": sim.inlet_pressure_bc,
                                        "keep": sim.graph.keep, **{f"opt_{k}": v for k, v in sim._opts.items()}},
                      arrays, meta)
@@ -114,16 +120,20 @@ def simulator_from_state(prefix: str, arrays: dict, meta: dict):
     KeyError, ValueError, TypeError
         Missing or inconsistent entries (the caller turns them into a one-line error).
     """
-    from porefsi.flow.drainage import DrainageSimulator
-    from porefsi.flow.fluids import Fluids
-    from porefsi.network.network import Network
-
     net = Network(**plain.get_fields(f"{prefix}.net", arrays, meta))
     fluids = Fluids(**plain.get_fields(f"{prefix}.fluids", arrays, meta))
     d = plain.get_fields(f"{prefix}.sim", arrays, meta)
     opts = {k[4:]: v for k, v in d.items() if k.startswith("opt_")}
-    bc = {"rate": d["rate"]} if d["inlet_pressure"] is None else {"inlet_pressure": d["inlet_pressure"]}
-    sim = DrainageSimulator(net, fluids, axis=d["axis"], _keep=d["keep"], **bc, **opts)
+    if f"{prefix}.options" in meta:
+        sim = DrainageSimulator(net, fluids, DrainageOptions(**plain.get_fields(f"{prefix}.options", arrays, meta)),
+                                axis=d["axis"], _keep=d["keep"])
+        if sim._opts != opts:
+            raise ValueError(f"stored engine options {opts} differ from the stored drainage options' {sim._opts}")
+    else:  # written before the options object: the engine options and the boundary condition
+        bc = {"rate": d["rate"]} if d["inlet_pressure"] is None else {"inlet_pressure": d["inlet_pressure"]}
+        if opts.get("scheme") == "adaptive":
+            opts.setdefault("tie_tolerance", 0.0)  # adaptive runs before the tolerance: the rigorous certificate
+        sim = DrainageSimulator(net, fluids, axis=d["axis"], _keep=d["keep"], **bc, **opts)
     if _graph_digest(sim.graph) != meta[f"{prefix}.graph_sha1"]:
         raise ValueError("the drainage graph rebuilt from the checkpoint differs from the saved one")
     if f"{prefix}.last_remap" in meta:
@@ -177,8 +187,6 @@ def load(path: str | Path, key: str) -> dict:
         No checkpoint at ``path``, an unreadable, damaged or old-format one, or one of a
         different run; the message names the file and the fix.
     """
-    from porefsi.flow.state import FlowState
-
     path = Path(path)
     if not path.is_file():
         raise InputError(f"cannot resume: no drainage checkpoint at {path}; run without --resume first "

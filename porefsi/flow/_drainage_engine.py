@@ -208,8 +208,8 @@ class Engine:
         hist = []
         for it in range(self.max_iter):
             cond, men, fa = self.solve()
-            e, ex, kind = kern._most_violated(g.a, g.b, n, self.full, self.trapped, self.inv, self.closed,
-                                           blocked, self.P, g.thr, g.pcb)
+            e, ex, kind = kern._most_violated((g.a, g.b, n), (self.full, self.trapped, self.inv, self.closed,
+                                                                     blocked), self.P, (g.thr, g.pcb))
             if e < 0 or ex <= self._ptol:
                 self.max_iter_seen = max(self.max_iter_seen, it)
                 break
@@ -249,8 +249,8 @@ class Engine:
         g = self.g
         zero = np.zeros(g.n + 1)
         nob = np.zeros(g.n_edges, dtype=bool)
-        e, ex, kind = kern._most_violated(g.a, g.b, g.n, self.full, self.trapped, self.inv, self.closed, nob,
-                                       zero, g.thr, g.pcb)
+        e, ex, kind = kern._most_violated((g.a, g.b, g.n), (self.full, self.trapped, self.inv, self.closed, nob),
+                                       zero, (g.thr, g.pcb))
         if e < 0 or kind != 1:
             raise NetworkError(
                 f"at t = {self.t:.6g} s the injected fluid can neither advance nor leave the network "
@@ -280,8 +280,8 @@ class Engine:
         skip_e[e] = True  # the one active meniscus: exclude it from the pinned candidates
         closed = self.closed.copy()
         closed[e] = True
-        e2, ex, _ = kern._most_violated(g.a, g.b, g.n, self.full, self.trapped, self.inv, closed, skip_e,
-                                        zero, g.thr, g.pcb)
+        e2, ex, _ = kern._most_violated((g.a, g.b, g.n), (self.full, self.trapped, self.inv, closed, skip_e),
+                                        zero, (g.thr, g.pcb))
         thr_min = -ex if e2 >= 0 else np.inf
         if p_up < thr_min * (1.0 - 1e-9):
             self._skip_solve_single_inflow(x)
@@ -340,8 +340,8 @@ class Engine:
         seeds = np.unique(np.concatenate([g.nbr[g.indptr[p]:g.indptr[p + 1]] for p in pores]))
         seeds = seeds[~self.full[seeds] & ~self.trapped[seeds]]
         if seeds.size:
-            kern._trapped_from(seeds, g.indptr, g.nbr, self.full, self.trapped, g.is_outlet, g.key,
-                            self._stamp, self._mark)
+            kern._trapped_from(seeds, (g.indptr, g.nbr, g.is_outlet, g.key), (self.full, self.trapped),
+                               (self._stamp, self._mark))
         self.flux_valid = False
         self.p_valid = False
 

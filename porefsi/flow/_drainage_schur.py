@@ -69,18 +69,49 @@ def split_solve(As, bs, y0, nmask, ml, rtol: float, maxiter: int):
     iterations : int
     """
     m = As.shape[0]
+    if float(np.linalg.norm(bs)) == 0.0:
+        return np.zeros(m), 0
+    red = _reduce(As, bs, nmask)
+    full = np.zeros(m)
+
+    def prec(r):
+        full[:] = 0.0
+        full[red.iW] = r
+        return ml.solve(full, maxiter=1, cycle="V", tol=1e-30)[red.iW]
+
+    x, it = _pcg(red.op, prec, red.rhs, np.nan_to_num(y0[red.iW]), rtol, float(np.linalg.norm(bs)), maxiter)
+    y = red.y
+    y[red.iW] = x
+    if red.iN.size:
+        y[red.iN] = red.luN.solve(bs[red.iN] - red.ANW @ x)
+    return y, it
+
+
+class _Reduced:
+    """The Schur complement of the non-wetting block: ``op(v) = (A_WW - A_WN A_NN^-1 A_NW) v`` and its rhs."""
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+    def op(self, v):
+        out = self.AWW @ v
+        if self.J.size:
+            out[self.J] -= self.T @ v[self.J]
+        return out
+
+
+def _reduce(As, bs, nmask) -> _Reduced:
+    """Eliminate the coupled non-wetting rows ``nmask`` of ``As y = bs`` directly (sparse LU)."""
     coupled = coupled_rows(As)
     d = As.diagonal()
-    y = np.where(coupled, 0.0, bs / d)
+    y = np.where(coupled, 0.0, bs / d)  # decoupled rows: d y = b
     iN = np.flatnonzero(nmask & coupled)
     iW = np.flatnonzero(~nmask & coupled)
-    bn = float(np.linalg.norm(bs))
-    if bn == 0.0:
-        return np.zeros(m), 0
     Ar = As[iN]
     ANW = Ar[:, iW].tocsc()
     ANW.eliminate_zeros()  # the fixed pattern stores pinned menisci as explicit zeros
     J = np.flatnonzero(np.diff(ANW.indptr))  # wetting columns coupled to the cluster (menisci)
+    luN = None
     if iN.size:
         luN = spla.splu(Ar[:, iN].tocsc(), permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
         BJ = ANW[:, J].toarray()
@@ -90,47 +121,40 @@ def split_solve(As, bs, y0, nmask, ml, rtol: float, maxiter: int):
     else:
         T = np.zeros((0, 0))
         rhs = bs[iW].copy()
-    AWW = As[iW][:, iW]
+    return _Reduced(y=y, iN=iN, iW=iW, ANW=ANW, J=J, luN=luN, T=T, rhs=rhs, AWW=As[iW][:, iW])
 
-    def op(v):
-        out = AWW @ v
-        if J.size:
-            out[J] -= T @ v[J]
-        return out
 
-    full = np.zeros(m)
+def _pcg(op, prec, rhs, x, rtol: float, bn: float, maxiter: int):
+    """Preconditioned CG on ``op x = rhs`` from ``x`` until ``||r|| <= rtol bn``; returns (x, iterations).
 
-    def prec(r):
-        full[:] = 0.0
-        full[iW] = r
-        return ml.solve(full, maxiter=1, cycle="V", tol=1e-30)[iW]
-
-    x = np.nan_to_num(y0[iW])
+    Raises
+    ------
+    ConvergenceError
+        Not converged in ``maxiter`` iterations (with the relative residual history).
+    """
+    tol = rtol * bn
     r = rhs - op(x)
     hist = [float(np.linalg.norm(r))]
     it = 0
-    if hist[-1] > rtol * bn:
+    if hist[-1] <= tol:
+        return x, it
+    z = prec(r)
+    p = z.copy()
+    rz = float(r @ z)
+    while True:
+        Ap = op(p)
+        alpha = rz / float(p @ Ap)
+        x = x + alpha * p
+        r = r - alpha * Ap
+        it += 1
+        hist.append(float(np.linalg.norm(r)))
+        if hist[-1] <= tol:
+            return x, it
+        if it >= maxiter:
+            raise ConvergenceError(
+                f"split pressure solve did not reach rtol={rtol:g} in {maxiter} CG iterations (last "
+                f"{hist[-1] / bn:.3g}); try solver='lowrank'", history=[h / bn for h in hist])
         z = prec(r)
-        p = z.copy()
-        rz = float(r @ z)
-        while True:
-            Ap = op(p)
-            alpha = rz / float(p @ Ap)
-            x = x + alpha * p
-            r = r - alpha * Ap
-            it += 1
-            hist.append(float(np.linalg.norm(r)))
-            if hist[-1] <= rtol * bn:
-                break
-            if it >= maxiter:
-                raise ConvergenceError(
-                    f"split pressure solve did not reach rtol={rtol:g} in {maxiter} CG iterations (last "
-                    f"{hist[-1] / bn:.3g}); try solver='lowrank'", history=[h / bn for h in hist])
-            z = prec(r)
-            rz_new = float(r @ z)
-            p = z + (rz_new / rz) * p
-            rz = rz_new
-    y[iW] = x
-    if iN.size:
-        y[iN] = luN.solve(bs[iN] - ANW @ x)
-    return y, it
+        rz_new = float(r @ z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new

@@ -283,66 +283,21 @@ class PressureSolver:
             self._factor(A)
             fresh = True
         for _attempt in range(2):
-            base = self._base
-            s = base["s"]
-            dd = A.data - base["data"]
-            nz = np.flatnonzero(dd)
-            S = np.unique(base["rows"][nz])
-            bz = np.flatnonzero(b)
-            # y = A0^-1 b from cached columns when b has few uncached nonzeros (the usual case:
-            # inlet and a few menisci), else by one base solve (many active menisci at high Ca:
-            # caching their columns would only crowd out the columns of changed rows)
-            direct_y = np.count_nonzero(base["col_of"][bz] < 0) > _MAX_RHS_COLUMNS
-            T = S if direct_y else np.union1d(S, bz)  # rows whose columns the solution needs
-            if S.size > self.max_rank or self._needs_new_base(T):
-                self._factor(A)
-                fresh = True
+            status, got = self._lowrank_update(A, b, hint)
+            if status != "ok":  # refactorised: too many changed rows, or a singular capacitance matrix
+                fresh = fresh or status == "rank"
                 continue
-            cT = self._columns(T, hint)
-            k = base["ncols"]
-            WT = base["WT"][:k]
-            # y = A0^-1 (s b) as a combination of cached columns (b is sparse): coefficients on T
-            coef = np.zeros(k)
-            if not direct_y:
-                coef[cT] = (b * s)[T]
-            cS = base["col_of"][S]
-            loc = np.full(A.shape[0], -1, dtype=np.int64)
-            loc[S] = np.arange(S.size)
-            rr = base["rows"][nz]
-            cc = A.indices[nz]
-            # D: the scaled change restricted to S x S (sparse: a few entries per changed row)
-            D = sp.csr_array((dd[nz] * s[rr] * s[cc], (loc[rr], loc[cc])), shape=(S.size, S.size))
-            if S.size:
-                WSS_T = WT[np.ix_(cS, S)]  # row j: W[S, cS_j], so this is W_SS^T
-                M = np.eye(S.size) + (D.T @ WSS_T).T  # = I + W_SS D with D sparse
-                try:
-                    lu_m = sla.lu_factor(M, check_finite=False)
-                except (ValueError, np.linalg.LinAlgError):
-                    self._factor(A)
-                    continue
-            else:
-                lu_m = None
-            upd = (lu_m, S, cS, D, WT)
-            if direct_y:
-                x = _woodbury(upd, base["lu"].solve(b * s)) * s
-            else:
-                if lu_m is not None:  # Woodbury correction on the coefficients of the cached columns
-                    z = sla.lu_solve(lu_m, coef @ WT[:, S], check_finite=False)
-                    coef[cS] -= D @ z
-                x = (coef @ WT) * s
+            x, upd, n_changed = got
             sc = 1.0 / np.sqrt(A.diagonal())
             bn = float(np.linalg.norm(b * sc))
             if bn == 0.0:
                 return np.zeros_like(b)
-            for _ in range(2):
-                r = b - A @ x
-                if float(np.linalg.norm(r * sc)) / bn <= self.rtol:
-                    if not fresh:
-                        self._fail_streak = 0
-                    return x
-                x = x + _woodbury(upd, base["lu"].solve(r * s)) * s  # refinement: one full base solve
-                self.iterations += 1
-            if fresh or S.size == 0:
+            x, ok = self._refine(A, b, x, upd, sc, bn)
+            if ok:
+                if not fresh:
+                    self._fail_streak = 0
+                return x
+            if fresh or n_changed == 0:
                 # a direct solve of this matrix with two refinement steps: as accurate as a
                 # factorisation gets (ill-conditioned systems, e.g. viscosity ratio 1e-3 at Ca 1e-2,
                 # stop above rtol here); refactorising would give the same answer again
@@ -354,6 +309,71 @@ class PressureSolver:
             self._factor(A)  # ill-conditioned update: start from a fresh base
             fresh = True
         return self._base["lu"].solve(b * self._base["s"]) * self._base["s"]
+
+    def _lowrank_update(self, A, b, hint):
+        """``A^-1 b`` from the base by a Woodbury update of the changed rows ``S``.
+
+        Returns ``("ok", (x, update, |S|))``, or ``("rank", None)`` / ``("singular", None)``
+        after refactorising the base from ``A`` (too many changed rows or cached columns; a
+        singular capacitance matrix).
+        """
+        base = self._base
+        s = base["s"]
+        dd = A.data - base["data"]
+        nz = np.flatnonzero(dd)
+        S = np.unique(base["rows"][nz])
+        bz = np.flatnonzero(b)
+        # y = A0^-1 b from cached columns when b has few uncached nonzeros (the usual case:
+        # inlet and a few menisci), else by one base solve (many active menisci at high Ca:
+        # caching their columns would only crowd out the columns of changed rows)
+        direct_y = np.count_nonzero(base["col_of"][bz] < 0) > _MAX_RHS_COLUMNS
+        T = S if direct_y else np.union1d(S, bz)  # rows whose columns the solution needs
+        if S.size > self.max_rank or self._needs_new_base(T):
+            self._factor(A)
+            return "rank", None
+        cT = self._columns(T, hint)
+        k = base["ncols"]
+        WT = base["WT"][:k]
+        # y = A0^-1 (s b) as a combination of cached columns (b is sparse): coefficients on T
+        coef = np.zeros(k)
+        if not direct_y:
+            coef[cT] = (b * s)[T]
+        cS = base["col_of"][S]
+        loc = np.full(A.shape[0], -1, dtype=np.int64)
+        loc[S] = np.arange(S.size)
+        rr = base["rows"][nz]
+        cc = A.indices[nz]
+        # D: the scaled change restricted to S x S (sparse: a few entries per changed row)
+        D = sp.csr_array((dd[nz] * s[rr] * s[cc], (loc[rr], loc[cc])), shape=(S.size, S.size))
+        lu_m = None
+        if S.size:
+            WSS_T = WT[np.ix_(cS, S)]  # row j: W[S, cS_j], so this is W_SS^T
+            M = np.eye(S.size) + (D.T @ WSS_T).T  # = I + W_SS D with D sparse
+            try:
+                lu_m = sla.lu_factor(M, check_finite=False)
+            except (ValueError, np.linalg.LinAlgError):
+                self._factor(A)
+                return "singular", None
+        upd = (lu_m, S, cS, D, WT)
+        if direct_y:
+            x = _woodbury(upd, base["lu"].solve(b * s)) * s
+        else:
+            if lu_m is not None:  # Woodbury correction on the coefficients of the cached columns
+                z = sla.lu_solve(lu_m, coef @ WT[:, S], check_finite=False)
+                coef[cS] -= D @ z
+            x = (coef @ WT) * s
+        return "ok", (x, upd, S.size)
+
+    def _refine(self, A, b, x, upd, sc, bn):
+        """Up to two refinement steps (one full base solve each); returns (x, converged to ``rtol``)."""
+        base = self._base
+        for _ in range(2):
+            r = b - A @ x
+            if float(np.linalg.norm(r * sc)) / bn <= self.rtol:
+                return x, True
+            x = x + _woodbury(upd, base["lu"].solve(r * base["s"])) * base["s"]  # refinement: one full base solve
+            self.iterations += 1
+        return x, False
 
     def _solve_split(self, As, bs, y0, nmask):
         """Non-wetting block direct, wetting block CG with a reused hierarchy (rebuilt when stale)."""

@@ -57,8 +57,11 @@ def _apply_filling(vol_nw, vol, q, filling, dt, k):
 
 
 @jit
-def _most_violated(a, b, n, full, trapped, inv, closed, blocked, P, thr, pcb):
+def _most_violated(edges, state, P, thresholds):
     """Most violated constraint of the active set, for every edge in one pass.
+
+    ``edges = (a, b, n)`` (edge ends, the inlet node's index), ``state = (full, trapped, inv,
+    closed, blocked)``, ``P`` the node pressures and ``thresholds = (thr, pcb)``.
 
     An edge with exactly one non-wetting end ``u`` (a full pore or the inlet node ``n``) and a
     non-full, non-trapped pore ``x`` at the other end is
@@ -70,6 +73,9 @@ def _most_violated(a, b, n, full, trapped, inv, closed, blocked, P, thr, pcb):
 
     Returns ``(edge, excess, kind)`` with kind 1 = open, -1 = close, or ``(-1, -inf, 0)``.
     """
+    a, b, n = edges
+    full, trapped, inv, closed, blocked = state
+    thr, pcb = thresholds
     best = -1
     best_ex = -_INF
     kind = 0
@@ -110,16 +116,20 @@ def _most_violated(a, b, n, full, trapped, inv, closed, blocked, P, thr, pcb):
 
 
 @jit
-def _trapped_from(seeds, indptr, nbr, full, trapped, is_outlet, key, stamp, mark):
+def _trapped_from(seeds, graph, state, work):
     """Find wetting clusters cut off from the outlet after some pores became full.
 
-    Best-first search (priority ``-key``, i.e. towards the outlet face) from every seed over
-    non-full, non-trapped pores; a search that reaches an outlet pore proves its cluster is
+    ``graph = (indptr, nbr, is_outlet, key)``, ``state = (full, trapped)``, ``work = (stamp,
+    mark)``. Best-first search (priority ``-key``, i.e. towards the outlet face) from every seed
+    over non-full, non-trapped pores; a search that reaches an outlet pore proves its cluster is
     connected; a search that exhausts its cluster marks it trapped. ``stamp``/``mark`` are work
-    arrays (int64, length n) reused between calls; ``mark`` values below ``stamp`` are stale.
+    arrays (int64, length 1 and n) reused between calls; ``mark`` values below ``stamp`` are stale.
 
     Returns the number of pores newly marked trapped (``trapped`` is updated in place).
     """
+    indptr, nbr, is_outlet, key = graph
+    full, trapped = state
+    stamp, mark = work
     n_new = 0
     base = stamp[0]
     # mark[v] == base + 1: reached-outlet set of this call; == base + 2 + s: visited by search s

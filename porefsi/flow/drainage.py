@@ -27,432 +27,52 @@ References
 
 from __future__ import annotations
 
-import math
+import dataclasses
 import time as _time
 
 import numpy as np
 
 from porefsi.errors import InputError
 from porefsi.flow import _drainage_checkpoint as _ckpt
-from porefsi.flow._drainage_engine import Engine
-from porefsi.flow._drainage_graph import build_graph
-from porefsi.flow._drainage_state import make_state
+from porefsi.flow._drainage_options import SCHEMES, DrainageOptions, RunControl, options_from
+from porefsi.flow._drainage_simulator import HISTORY_COLUMNS, OUTLET_PRESSURE, DrainageSimulator
 from porefsi.flow.fluids import PAPER_FLUIDS, Fluids
-from porefsi.flow.state import DrainageResult, FlowState
+from porefsi.flow.state import DrainageResult
 from porefsi.image.voxel_image import axis_index
 from porefsi.network.network import Network
 
-__all__ = ["DrainageSimulator", "DrainageResult", "simulate_drainage", "PAPER_RATE", "PAPER_T_END",
-           "HISTORY_COLUMNS", "OUTLET_PRESSURE", "SCHEMES", "DEFAULT_SCHEME"]
+__all__ = ["DrainageSimulator", "DrainageResult", "DrainageOptions", "RunControl", "simulate_drainage", "PAPER_RATE",
+           "PAPER_T_END", "HISTORY_COLUMNS", "OUTLET_PRESSURE", "SCHEMES", "DEFAULT_SCHEME"]
 
-#: The paper's injection rate, m³/s, and injection time, s.
-PAPER_RATE = 1.25e-13
-PAPER_T_END = 20.0
+#: The paper's injection rate, m³/s, and injection time, s (the defaults of :class:`DrainageOptions`).
+PAPER_RATE = DrainageOptions.rate
+PAPER_T_END = DrainageOptions.t_end
 
-#: Pressure of the virtual outlet node, Pa (gauge): 0 by construction (the node is eliminated from
-#: the pressure system), so the capillary pressure inlet minus outlet equals the inlet pressure.
-OUTLET_PRESSURE = 0.0
-
-# what the engine stores per event (checkpoints pickle these rows: keep their layout)
-_ROW_COLUMNS = ("time_s", "injected_m3", "sw", "inlet_pressure_pa", "w_outflow_m3_s", "nw_outflow_m3_s",
-                "n_events", "n_solves", "mass_balance_error", "n_full")
-
-#: Columns of :attr:`DrainageResult.history` (one row per event): the stored ones plus
-#: ``capillary_pressure_pa`` = inlet minus outlet node pressure (:data:`OUTLET_PRESSURE`).
-HISTORY_COLUMNS = ("time_s", "injected_m3", "sw", "inlet_pressure_pa", "capillary_pressure_pa", "w_outflow_m3_s",
-                   "nw_outflow_m3_s", "n_events", "n_solves", "mass_balance_error", "n_full")
-
-
-#: Drainage schemes: ``'exact'`` (a pressure solve after every event, the reference) and
-#: ``'adaptive'`` (certified quasi-static batches without solves, dynamic events elsewhere).
-SCHEMES = ("exact", "adaptive")
 #: The scheme the command line and the case file use unless told otherwise.
-DEFAULT_SCHEME = "exact"
+DEFAULT_SCHEME = DrainageOptions.scheme
 
 
-def _make_engine(graph, rate, inlet_pressure, opts: dict) -> Engine:
-    """The event engine of the scheme named in ``opts`` (checkpoints older than schemes: exact)."""
-    o = dict(opts)
-    if o.pop("scheme", "exact") == "adaptive":
-        from porefsi.flow._drainage_adaptive import AdaptiveEngine
-
-        return AdaptiveEngine(graph, rate, inlet_pressure, **o)
-    return Engine(graph, rate, inlet_pressure, **o)
-
-
-def _adaptive_options(local_solves, hops, local_menisci) -> dict:
-    """Validated knobs of the adaptive scheme (defaults from the measurements in docs/drainage.md)."""
-    from porefsi.flow._drainage_adaptive import DEFAULT_HOPS, DEFAULT_LOCAL_MENISCI, DEFAULT_LOCAL_SOLVES
-
-    out = {}
-    for name, v, lo, default in (("local_solves", local_solves, 0, DEFAULT_LOCAL_SOLVES),
-                                 ("hops", hops, 1, DEFAULT_HOPS),
-                                 ("local_menisci", local_menisci, 0, DEFAULT_LOCAL_MENISCI)):
-        v = default if v is None else v
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-            raise InputError(f"{name} must be an integer >= {lo}, got {v!r}")
-        out[name] = int(v)
-    return out
-
-
-def _positive(name, v, unit):
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number ({unit}), got {v!r}") from None
-    if not math.isfinite(x) or x <= 0:
-        raise InputError(f"{name} must be a finite number > 0 {unit}, got {v!r}")
-    return x
-
-
-class DrainageSimulator:
-    """Time-resolved drainage of a network, advanced on demand (for coupling to a solid).
+def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, options: DrainageOptions | None = None, *,
+                      axis="x", times=None, stop_at_breakthrough: bool = False, run: RunControl | None = None,
+                      **overrides) -> DrainageResult:
+    """Run a drainage from t = 0 to ``options.t_end`` and collect the time series and snapshots.
 
     Parameters
     ----------
-    net : Network
-        The pore network. Pores not in a group joining the two faces of ``axis`` are dropped
-        (``n_dropped`` says how many).
-    fluids : Fluids
-        Viscosities, interfacial tension and contact angle (default: the paper's).
-    rate : float, optional
-        Constant injection rate, m³/s (default the paper's 1.25e-13). Ignored when
-        ``inlet_pressure`` is given.
-    inlet_pressure : float, optional
-        Constant inlet pressure, Pa (gauge, outlet at 0), instead of a constant rate.
-    axis : {'x', 'y', 'z'}
-        Flow direction: inlet on its low face, outlet on its high face.
-    solver : {'auto', 'lowrank', 'direct', 'amg', 'jacobi'}
-        Pressure solver. 'auto': 'direct' up to 400 unknowns (kept pores plus the inlet node),
-        else 'lowrank'. 'direct': a fresh sparse LU per solve. 'lowrank': one sparse LU reused
-        across events through low-rank (Sherman–Morrison–Woodbury) updates of the rows that
-        changed, checked by its residual: a direct solve to round-off. 'amg': CG preconditioned by
-        a reused pyamg hierarchy. 'jacobi': diagonal-scaled CG (tests only).
-    skip_solves : bool or 'auto'
-        Skip the pressure solve after a quasi-static jump when a resistance bound proves that no
-        other meniscus can move while the invaded pore fills (constant rate only; the outcome is
-        identical, the inlet pressure of such events is recorded as NaN). 'auto': on above 5000 pores.
-    max_active_set_iter : int, optional
-        Cap of active-set iterations per event (default 4 E + 10); exceeding it raises
-        :class:`~porefsi.errors.ConvergenceError` with the violation history.
-
-    Raises
-    ------
-    InputError
-        Non-positive rate, non-finite inlet pressure or an unknown ``solver``.
-    NetworkError
-        No inlet or outlet pores on the axis, or no connected path between them.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from porefsi.network.lattice import lattice_network
-    >>> net = lattice_network((6, 6, 1), 1e-4, np.random.default_rng(0))
-    >>> sim = DrainageSimulator(net, rate=1e-12)
-    >>> state = sim.advance_to(0.5)
-    >>> bool(0.0 <= state.nw_saturation.min() <= state.nw_saturation.max() <= 1.0)
-    True
-    """
-
-    def __init__(self, net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: float = PAPER_RATE,
-                 inlet_pressure: float | None = None, axis="x", solver: str = "auto",
-                 skip_solves: bool | str = "auto", max_active_set_iter: int | None = None, scheme: str = "exact",
-                 local_solves: int | None = None, hops: int | None = None, local_menisci: int | None = None,
-                 _keep=None):
-        if not isinstance(net, Network):
-            raise InputError(f"net must be a porefsi Network, got {type(net).__name__}")
-        if not isinstance(fluids, Fluids):
-            raise InputError(f"fluids must be a porefsi Fluids, got {type(fluids).__name__}")
-        self.net = net
-        self.fluids = fluids
-        self.axis = axis_index(axis)
-        if inlet_pressure is None:
-            self.rate = _positive("rate", rate, "m^3/s")
-            self.inlet_pressure_bc = None
-        else:
-            p = float(inlet_pressure)
-            if not math.isfinite(p):
-                raise InputError(f"inlet_pressure must be finite (Pa), got {inlet_pressure!r}")
-            self.rate = None
-            self.inlet_pressure_bc = p
-        self.graph = build_graph(net, fluids, self.axis, keep=_keep)
-        if skip_solves == "auto":
-            skip_solves = self.graph.n > 5000
-        if scheme not in SCHEMES:
-            raise InputError(f"unknown drainage scheme {scheme!r}; choose one of {', '.join(map(repr, SCHEMES))} "
-                             "('exact': a pressure solve after every event; 'adaptive': certified quasi-static "
-                             "batches, see docs/drainage.md)")
-        self._opts = dict(solver=solver, skip_solves=bool(skip_solves), max_active_set_iter=max_active_set_iter,
-                          scheme=scheme)
-        if scheme == "adaptive":
-            self._opts.update(_adaptive_options(local_solves, hops, local_menisci))
-        elif local_solves is not None or hops is not None or local_menisci is not None:
-            raise InputError("local_solves, hops and local_menisci are options of scheme='adaptive' only")
-        self._engine = _make_engine(self.graph, self.rate, self.inlet_pressure_bc, self._opts)
-
-    # -- sizes and counters ----------------------------------------------------------------
-    @property
-    def n_dropped(self) -> int:
-        """Number of pores dropped because they do not connect the inlet face to the outlet face."""
-        return self.net.n_pores - self.graph.n
-
-    @property
-    def t(self) -> float:
-        """Current time, s."""
-        return self._engine.t
-
-    @property
-    def counters(self) -> dict:
-        """Event and solve counts: events, fills, jumps, solves, skipped solves, AMG setups, ...
-
-        The adaptive scheme adds ``n_certified_fills`` (quasi-static fills certified without a
-        solve), ``n_local_solves`` and ``n_global_solves``.
-        """
-        e = self._engine
-        out = dict(n_events=e.n_events, n_fills=e.n_fills, n_jumps=e.n_jumps, n_solves=e.solver.n_solves,
-                   n_skipped_solves=e.n_skipped, n_active_set_changes=e.n_changes,
-                   max_active_set_iterations=e.max_iter_seen, n_solver_setups=e.solver.n_setups,
-                   cg_iterations=e.solver.iterations)
-        if hasattr(e, "n_certified"):
-            out.update(n_certified_fills=e.n_certified, n_local_solves=e.n_local, n_global_solves=e.n_global)
-        return out
-
-    @property
-    def breakthrough_time(self) -> float:
-        """Time the first outlet pore became full, s (NaN before)."""
-        return self._engine.t_breakthrough
-
-    # -- stepping --------------------------------------------------------------------------
-    def advance_to(self, t: float, stop_at_breakthrough: bool = False) -> FlowState:
-        """Advance to time ``t`` (s) and return the state there (pressures solved if stale).
-
-        Raises
-        ------
-        InputError
-            ``t`` earlier than the current time or not finite.
-        """
-        t = float(t)
-        e = self._engine
-        if not math.isfinite(t) or t < e.t:
-            raise InputError(f"cannot advance to t = {t!r} s: the simulation is at t = {e.t:.6g} s; "
-                             "times must be finite and non-decreasing")
-        while e.t < t:
-            e.step(t)
-            if stop_at_breakthrough and not np.isnan(e.t_breakthrough):
-                break
-        return self.state
-
-    def events(self, t_end: float):
-        """Generator over events up to ``t_end``: yields ``t`` after each event (state via :attr:`state`)."""
-        t_end = float(t_end)
-        e = self._engine
-        while e.t < t_end:
-            e.step(t_end)
-            yield e.t
-
-    @property
-    def state(self) -> FlowState:
-        """The current :class:`FlowState` (solves for the pressure if a skipped solve left it stale)."""
-        e = self._engine
-        e.ensure_pressure()
-        return make_state(self.net, self.graph, e)
-
-    def with_network(self, net: Network) -> DrainageSimulator:
-        """Carry the state onto ``net``: same pores and throats, new radii, lengths and volumes.
-
-        Saturations are kept, so each pore's non-wetting volume scales with its volume; the
-        non-wetting volume this creates (or removes, if pores shrink) is booked as
-        ``deformation_volume`` so the mass balance stays exact. Nothing can overflow: a full pore
-        stays full. Entry pressures and conductances follow the new radii; the field is re-solved
-        at the next event.
-
-        Raises
-        ------
-        InputError
-            ``net`` has different pores or throats.
-        """
-        old = self.net
-        if net.n_pores != old.n_pores or not np.array_equal(net.throat_conns, old.throat_conns) or \
-                not np.array_equal(net.pore_faces, old.pore_faces):
-            raise InputError("with_network needs the same pores, throats and face labels (only sizes may "
-                             "change); build a new DrainageSimulator for a different network")
-        new = DrainageSimulator.__new__(DrainageSimulator)
-        new.net, new.fluids, new.axis = net, self.fluids, self.axis
-        new.rate, new.inlet_pressure_bc, new._opts = self.rate, self.inlet_pressure_bc, self._opts
-        new.graph = build_graph(net, self.fluids, self.axis, keep=self.graph.keep)
-        e0 = self._engine
-        e = _make_engine(new.graph, self.rate, self.inlet_pressure_bc, self._opts)
-        for name in ("full", "trapped", "inv", "closed", "parent", "P", "fill_time", "edge_time"):
-            setattr(e, name, getattr(e0, name).copy())
-        for name in ("t", "injected", "out_n", "out_w", "t_breakthrough", "sw_breakthrough", "n_events",
-                     "n_fills", "n_jumps", "n_skipped", "n_changes", "max_iter_seen", "rows"):
-            v = getattr(e0, name)
-            setattr(e, name, list(v) if isinstance(v, list) else v)
-        e._stamp, e._mark = e0._stamp.copy(), e0._mark.copy()
-        e.solver.n_solves = e0.solver.n_solves
-        sat = e0.vn / e0.g.vol
-        e.vn = np.where(e0.full, new.graph.vol, sat * new.graph.vol)
-        e.deformation = e0.deformation + float(e.vn.sum() - e0.vn.sum())
-        e.p_valid = False
-        e.flux_valid = False
-        # non-wetting path resistances along the invasion tree, in fill order
-        for x in np.argsort(np.where(e.full, e.fill_time, np.inf), kind="stable")[:int(e.full.sum())]:
-            pe = e.parent[x]
-            g = new.graph
-            u = g.a[pe] if g.b[pe] == x else g.b[pe]
-            e.tree_res[x] = e.tree_res[u] + 1.0 / g.gn[pe]
-        if hasattr(e, "dn_full"):  # adaptive: non-wetting distances from the new conductances
-            e.dn_full = -1
-        new._engine = e
-        return new
-
-    def remap(self, net: Network, nw_saturation, invasion_time=None, full_tol: float = 1e-9) -> DrainageSimulator:
-        """Carry the state onto a network of a *different* topology, given its pore saturations.
-
-        The coupling re-extracts the network from the deformed image; the caller computes each new
-        pore's non-wetting saturation by volume-weighted voxel overlap of the old and new label
-        images. This builds a consistent engine state from those saturations (full pores, the
-        non-wetting cluster connected to the inlet, filling pores attached to it, invaded throats,
-        trapped wetting clusters, the invasion tree) and keeps time, injected and outflow volumes,
-        breakthrough and counters. The change of stored non-wetting volume is booked as
-        ``deformation_volume``, so the mass balance stays exact. See ``docs/drainage.md`` ("Remap")
-        for the construction and what is approximate.
-
-        Parameters
-        ----------
-        net : Network
-            The new network (any topology; pores not spanning the axis are dropped).
-        nw_saturation : array_like of float, shape (net.n_pores,)
-            Non-wetting saturation of each new pore, in [0, 1] (values within 1e-9 outside are clipped).
-        invasion_time : array_like of float, shape (net.n_pores,), optional
-            Time each new pore became full, s (e.g. the earliest overlapping old pore's); full pores
-            without one get the current time.
-        full_tol : float
-            Saturations ``>= 1 - full_tol`` count as full.
-
-        Returns
-        -------
-        DrainageSimulator
-            A new simulator (this one is unchanged); ``last_remap`` holds the counts of full,
-            filling and stranded pores and the stranded non-wetting volume (m³) that was removed.
-
-        Raises
-        ------
-        InputError
-            Wrong shape, non-finite or out-of-range saturations.
-        NetworkError
-            ``net`` has no spanning path along the axis.
-        """
-        from porefsi.flow._drainage_remap import engine_arrays_from_saturation
-
-        if not isinstance(net, Network):
-            raise InputError(f"net must be a porefsi Network, got {type(net).__name__}")
-        sat = np.asarray(nw_saturation, dtype=float)
-        if sat.shape != (net.n_pores,):
-            raise InputError(f"nw_saturation needs shape ({net.n_pores},) (one value per pore of the new "
-                             f"network), got {sat.shape}")
-        if not np.all(np.isfinite(sat)) or sat.min(initial=0.0) < -1e-9 or sat.max(initial=0.0) > 1 + 1e-9:
-            raise InputError("nw_saturation must be finite and within [0, 1], got range "
-                             f"[{np.min(sat):.6g}, {np.max(sat):.6g}]; compute it as overlap volume / pore volume")
-        sat = np.clip(sat, 0.0, 1.0)
-        e0 = self._engine
-        new = DrainageSimulator.__new__(DrainageSimulator)
-        new.net, new.fluids, new.axis = net, self.fluids, self.axis
-        new.rate, new.inlet_pressure_bc, new._opts = self.rate, self.inlet_pressure_bc, self._opts
-        new.graph = g = build_graph(net, self.fluids, self.axis)
-        e = _make_engine(g, self.rate, self.inlet_pressure_bc, self._opts)
-        arr = engine_arrays_from_saturation(g, sat[g.keep], full_tol=full_tol)
-        for name in ("vn", "full", "trapped", "inv", "parent", "tree_res"):
-            setattr(e, name, arr[name])
-        for name in ("t", "injected", "out_n", "out_w", "t_breakthrough", "sw_breakthrough", "n_events",
-                     "n_fills", "n_jumps", "n_skipped", "n_changes", "max_iter_seen", "rows"):
-            v = getattr(e0, name)
-            setattr(e, name, list(v) if isinstance(v, list) else v)
-        e.solver.n_solves = e0.solver.n_solves
-        ft = np.full(net.n_pores, e.t) if invasion_time is None else np.asarray(invasion_time, dtype=float)
-        if ft.shape != (net.n_pores,):
-            raise InputError(f"invasion_time needs shape ({net.n_pores},), got {ft.shape}")
-        ft = ft[g.keep]
-        e.fill_time = np.where(e.full, np.where(np.isfinite(ft), np.minimum(ft, e.t), e.t), np.nan)
-        e.edge_time = np.where(e.inv, e.t, np.nan)
-        if np.isnan(e.t_breakthrough) and (e.full & g.is_outlet).any():
-            e.t_breakthrough, e.sw_breakthrough = e.t, e.sw()
-        e.deformation = e0.deformation + float(e.vn.sum() - e0.vn.sum())
-        e.P = np.zeros(g.n + 1)
-        e.p_valid = False
-        e.flux_valid = False
-        new._engine = e
-        new.last_remap = {k: arr[k] for k in ("n_full", "n_filling", "n_stranded", "stranded_volume")}
-        return new
-
-    def history(self) -> dict:
-        """Time series so far, one row per event: dict of arrays keyed by :data:`HISTORY_COLUMNS`.
-
-        ``capillary_pressure_pa`` is the inlet minus the outlet node pressure; the outlet is at
-        :data:`OUTLET_PRESSURE` = 0 by construction, so it equals ``inlet_pressure_pa`` (NaN where
-        a skipped solve left the pressure undetermined).
-        """
-        rows = np.asarray(self._engine.rows, dtype=float).reshape(-1, len(_ROW_COLUMNS))
-        h = {k: rows[:, i].copy() for i, k in enumerate(_ROW_COLUMNS)}
-        h["capillary_pressure_pa"] = h["inlet_pressure_pa"] - OUTLET_PRESSURE
-        return {k: h[k] for k in HISTORY_COLUMNS}
-
-    def invasion_time(self) -> np.ndarray:
-        """Time each pore became full of non-wetting fluid, s, shape (Np,) (NaN if never)."""
-        out = np.full(self.net.n_pores, np.nan)
-        out[self.graph.keep] = self._engine.fill_time
-        return out
-
-    def throat_invasion_time(self) -> np.ndarray:
-        """Time the non-wetting fluid first passed each throat, s, shape (Nt,) (NaN if never)."""
-        g = self.graph
-        out = np.full(self.net.n_throats, np.nan)
-        m = g.throat >= 0
-        out[g.throat[m]] = self._engine.edge_time[m]
-        return out
-
-
-def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: float = PAPER_RATE,
-                      t_end: float = PAPER_T_END, times=None, axis="x", inlet_pressure: float | None = None,
-                      stop_at_breakthrough: bool = False, checkpoint=None, checkpoint_every: float = 60.0,
-                      resume: bool = False, progress=None, report=None, report_every: float = 5.0,
-                      **options) -> DrainageResult:
-    """Run a drainage from t = 0 to ``t_end`` and collect the time series and snapshots.
-
-    Parameters
-    ----------
-    net, fluids, rate, axis, inlet_pressure
+    net, fluids, axis
         As for :class:`DrainageSimulator`.
-    t_end : float
-        End time, s (default the paper's 20 s).
+    options : DrainageOptions, optional
+        Rate or inlet pressure, end time ``t_end`` (s, default the paper's 20 s), scheme and
+        pressure solver (default: the paper's set-up, exact scheme).
     times : array_like of float, optional
         Snapshot times, s, within (0, t_end]; the final state is always included.
     stop_at_breakthrough : bool
         Stop at the first breakthrough instead of ``t_end``.
-    checkpoint : str or Path, optional
-        File the run is saved to, between two events, every ``checkpoint_every`` seconds of wall
-        time and at the end (atomically: a killed run leaves the previous checkpoint intact).
-        The first Ctrl-C (SIGINT, main thread) is then deferred to the end of the current event:
-        the run is saved there and :class:`KeyboardInterrupt` raised (a second Ctrl-C interrupts
-        at once).
-    checkpoint_every : float
-        Wall seconds between checkpoints (default 60).
-    resume : bool
-        Continue from ``checkpoint`` (written by a run with the same arguments) instead of
-        starting at t = 0. The resumed run repeats the uninterrupted run's arithmetic: its result
-        is the same to the last bit ('direct' and 'lowrank' solvers; the 'amg' hierarchy is
-        rebuilt, so it agrees to the solver tolerance). ``seconds`` counts all processes.
-    progress : callable, optional
-        Called as ``progress(sim, seconds)`` after each checkpoint (e.g. to print a progress line).
-    report : callable, optional
-        Called as ``report(sim, seconds)`` once the run starts (after a resumed run's checkpoint is
-        read) and then every ``report_every`` seconds of wall time, between two events (with or
-        without checkpoints: a progress line for logs).
-    report_every : float
-        Wall seconds between two ``report`` calls (default 5).
-    **options
-        ``solver``, ``skip_solves``, ``max_active_set_iter``, ``scheme``, ``local_solves``,
-        ``hops`` (see :class:`DrainageSimulator`).
+    run : RunControl, optional
+        Checkpoints, resume and progress callbacks (they never change the result).
+    **overrides
+        Fields of :class:`DrainageOptions` or of :class:`RunControl` by name (the keyword form,
+        e.g. ``simulate_drainage(net, rate=1e-13, t_end=0.5)``), replacing those given.
 
     Returns
     -------
@@ -462,74 +82,102 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, *, rate: floa
     ------
     InputError
         Bad times or rates; ``resume`` without a checkpoint or with one of another run.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from porefsi.network.lattice import lattice_network
+    >>> net = lattice_network((6, 6, 1), 1e-4, np.random.default_rng(0))
+    >>> res = simulate_drainage(net, options=DrainageOptions(rate=1e-12, t_end=0.5), times=[0.25])
+    >>> [round(s.t, 6) for s in res.snapshots], bool(res.final.mass_balance_error < 1e-12)
+    ([0.25, 0.5], True)
+    >>> rigorous = DrainageOptions(rate=1e-12, t_end=0.5, scheme="adaptive", tie_tolerance=0.0)
+    >>> fast = simulate_drainage(net, options=rigorous)  # certified batches only: the exact events
+    >>> bool(np.array_equal(fast.invasion_time, res.invasion_time, equal_nan=True))
+    True
     """
-    t_end = _positive("t_end", t_end, "s")
+    options, run_kw = options_from(options, overrides, run_ok=True)
+    run = dataclasses.replace(run or RunControl(), **run_kw)
+    t_end = options.t_end
     ts = np.unique(np.asarray([] if times is None else times, dtype=float).ravel())
     if ts.size and (not np.all(np.isfinite(ts)) or ts[0] <= 0 or ts[-1] > t_end):
         raise InputError(f"snapshot times must lie in (0, t_end={t_end:g}] s, got {ts.min():g}..{ts.max():g}")
     if not isinstance(net, Network) or not isinstance(fluids, Fluids):
         raise InputError(f"simulate_drainage needs a porefsi Network and Fluids, got {type(net).__name__} and "
                          f"{type(fluids).__name__}")
-    if resume and checkpoint is None:
-        raise InputError("resume=True needs the checkpoint file to resume from (checkpoint=...)")
-    every = _positive("checkpoint_every", checkpoint_every, "s")
-    report_every = _positive("report_every", report_every, "s")
-    t0 = _time.perf_counter()
     key = None
-    if checkpoint is not None:
-        settings = dict(rate=rate, t_end=t_end, times=tuple(ts.tolist()), axis=axis_index(axis),
-                        inlet_pressure=inlet_pressure, stop_at_breakthrough=bool(stop_at_breakthrough),
-                        options=tuple(sorted(options.items())))
+    if run.checkpoint is not None:
+        settings = dict(times=tuple(ts.tolist()), axis=axis_index(axis),
+                        stop_at_breakthrough=bool(stop_at_breakthrough),
+                        options=tuple(sorted(dataclasses.asdict(options).items())))
         key = _ckpt.fingerprint(net, fluids, settings)
-    if resume:
-        d = _ckpt.load(checkpoint, key)
-        sim, snaps, k, before = d["sim"], d["snaps"], d["k"], d["seconds"]
+    driver = _Driver(run, key)
+    if run.resume:
+        d = _ckpt.load(run.checkpoint, key)
+        sim, snaps, k, driver.before = d["sim"], d["snaps"], d["k"], d["seconds"]
     else:
-        sim = DrainageSimulator(net, fluids, rate=rate, inlet_pressure=inlet_pressure, axis=axis, **options)
-        snaps, k, before = [], 0, 0.0
-    e = sim._engine
-    targets = [*ts.tolist(), t_end]
-    last = last_report = _time.perf_counter()
-    if report is not None:  # the run has started (inputs and checkpoint checked)
-        report(sim, before + last_report - t0)
-
-    def save():
-        nonlocal last
-        secs = before + _time.perf_counter() - t0
-        _ckpt.save(checkpoint, key, dict(sim=sim, snaps=snaps, k=k, seconds=secs))
-        last = _time.perf_counter()
-        if progress is not None:
-            progress(sim, secs)
-
-    stopped = False
-    with _ckpt.deferred_interrupt(checkpoint is not None) as interrupted:  # Ctrl-C: save, then stop
-        while k < len(targets):
-            t = targets[k]
-            while e.t < t and not stopped:
-                e.step(t)
-                stopped = stop_at_breakthrough and not np.isnan(e.t_breakthrough)
-                if report is not None and _time.perf_counter() - last_report >= report_every:
-                    last_report = _time.perf_counter()
-                    report(sim, before + last_report - t0)
-                if checkpoint is not None and (interrupted() or _time.perf_counter() - last >= every):
-                    save()
-                    if interrupted():
-                        raise KeyboardInterrupt(f"drainage interrupted at t = {e.t:.6g} s; saved to {checkpoint}: "
-                                                "continue with resume=True (command line: --resume)")
-            if k < len(ts):  # a snapshot time (at breakthrough, when stopping there, the final state only)
-                if stopped:
-                    k = len(ts)
-                    continue
-                snaps.append(sim.state)
-            k += 1
+        sim = DrainageSimulator(net, fluids, options, axis=axis)
+        snaps, k = [], 0
+    driver.advance(sim, [*ts.tolist(), t_end], snaps, k, stop_at_breakthrough)
     final = sim.state
     if not snaps or snaps[-1].t != final.t:
         snaps.append(final)
-    if checkpoint is not None:
-        save()
-    seconds = before + _time.perf_counter() - t0
+    if run.checkpoint is not None:
+        driver.save(sim, snaps, len(ts) + 1)
     return DrainageResult(
         history=sim.history(), snapshots=snaps, invasion_time=sim.invasion_time(),
         breakthrough_time=sim.breakthrough_time, breakthrough_sw=sim._engine.sw_breakthrough, final=final,
-        counters=sim.counters, n_dropped=sim.n_dropped, seconds=seconds,
+        counters=sim.counters, n_dropped=sim.n_dropped, seconds=driver.seconds(),
     )
+
+
+class _Driver:
+    """Advances a simulator through its target times with checkpoints, reports and deferred Ctrl-C."""
+
+    def __init__(self, run: RunControl, key: str | None):
+        self.run, self.key = run, key
+        self.before = 0.0  # seconds of the processes before a resume
+        self.t0 = self.last = self.last_report = _time.perf_counter()
+
+    def seconds(self) -> float:
+        return self.before + _time.perf_counter() - self.t0
+
+    def save(self, sim, snaps, k):
+        secs = self.seconds()
+        _ckpt.save(self.run.checkpoint, self.key, dict(sim=sim, snaps=snaps, k=k, seconds=secs))
+        self.last = _time.perf_counter()
+        if self.run.progress is not None:
+            self.run.progress(sim, secs)
+
+    def _between_events(self, sim, snaps, k, interrupted):
+        run = self.run
+        if run.report is not None and _time.perf_counter() - self.last_report >= run.report_every:
+            self.last_report = _time.perf_counter()
+            run.report(sim, self.seconds())
+        if run.checkpoint is not None and (interrupted() or _time.perf_counter() - self.last >= run.checkpoint_every):
+            self.save(sim, snaps, k)
+            if interrupted():
+                raise KeyboardInterrupt(f"drainage interrupted at t = {sim.t:.6g} s; saved to {run.checkpoint}: "
+                                        "continue with resume=True (command line: --resume)")
+
+    def advance(self, sim, targets, snaps, k, stop_at_breakthrough) -> None:
+        """Step ``sim`` through ``targets[k:]`` (snapshot times, then the end), appending snapshots."""
+        e = sim._engine
+        n_snap = len(targets) - 1
+        self.last = self.last_report = _time.perf_counter()
+        if self.run.report is not None:  # the run has started (inputs and checkpoint checked)
+            self.run.report(sim, self.seconds())
+        stopped = False
+        with _ckpt.deferred_interrupt(self.run.checkpoint is not None) as interrupted:  # Ctrl-C: save, then stop
+            while k < len(targets):
+                t = targets[k]
+                while e.t < t and not stopped:
+                    e.step(t)
+                    stopped = stop_at_breakthrough and not np.isnan(e.t_breakthrough)
+                    self._between_events(sim, snaps, k, interrupted)
+                if k < n_snap:  # a snapshot time (at breakthrough, when stopping there, the final state only)
+                    if stopped:
+                        k = n_snap
+                        continue
+                    snaps.append(sim.state)
+                k += 1

@@ -94,74 +94,94 @@ def invasion_percolation(net: Network, fluids: Fluids = PAPER_FLUIDS, axis="x", 
         No inlet or outlet pores on the axis, or no connected path between them.
     """
     g = build_graph(net, fluids, axis_index(axis))
-    n = g.n
-    full = np.zeros(n, dtype=bool)
-    trapped = np.zeros(n, dtype=bool)
-    stamp = np.zeros(1, dtype=np.int64)
-    mark = np.zeros(n, dtype=np.int64)
-    seq = np.full(n, -1, dtype=np.int64)
-    entry = np.full(n, np.nan)
-    via = np.full(g.n_edges, -1, dtype=np.int64)
-    heap: list = []
-    in_edges = np.flatnonzero(g.is_in_edge)
-    for e in in_edges:
-        heapq.heappush(heap, (float(g.thr[e]), int(e)))
-    pcs, sws = [], []
-    vol_tot = float(g.vol.sum())
-    stored = 0.0
-    pc = -np.inf
-    bt = -1
-    k = 0
-
-    def invade(x, e, thr):
-        nonlocal stored, pc, k
-        full[x] = True
-        seq[x] = k
-        entry[x] = thr
-        if e >= 0:
-            via[e] = k
-        stored += g.vol[x]
-        pc = max(pc, thr)
-        pcs.append(pc)
-        sws.append(1.0 - stored / vol_tot)
-        k += 1
-        for p in range(g.indptr[x], g.indptr[x + 1]):
-            y = g.nbr[p]
-            if not full[y]:
-                heapq.heappush(heap, (float(g.thr[g.nbr_edge[p]]), int(g.nbr_edge[p])))
-        if trapping:
-            seeds = g.nbr[g.indptr[x]:g.indptr[x + 1]]
-            seeds = seeds[~full[seeds] & ~trapped[seeds]]
-            if seeds.size:
-                kern._trapped_from(seeds.astype(np.int64), g.indptr, g.nbr, full, trapped, g.is_outlet, g.key,
-                                stamp, mark)
-
+    ip = _Invasion(g, trapping)
     if inlet_pores_filled:
-        heap = []
-        for e in in_edges:
+        for e in np.flatnonzero(g.is_in_edge):
             x = int(g.b[e])
-            if not full[x]:
-                invade(x, -1, 0.0)
-    while heap:
-        thr, e = heapq.heappop(heap)
-        a, b = int(g.a[e]), int(g.b[e])
-        x = b if (a == n or full[a]) else a
-        if full[x] or trapped[x]:
-            continue
-        invade(x, e, thr)
-        if bt < 0 and g.is_outlet[x]:
-            bt = k - 1
-            if stop_at_breakthrough:
-                break
-    n_p = net.n_pores
-    ps = np.full(n_p, -1, dtype=np.int64)
-    ps[g.keep] = seq
-    pe = np.full(n_p, np.nan)
-    pe[g.keep] = entry
-    ts = np.full(net.n_throats, -1, dtype=np.int64)
-    m = g.throat >= 0
-    ts[g.throat[m]] = via[m]
-    tr = np.zeros(n_p, dtype=bool)
-    tr[g.keep] = trapped
-    return InvasionResult(pore_sequence=ps, pore_entry_pressure=pe, throat_sequence=ts, trapped=tr,
-                          capillary_pressure=np.asarray(pcs), sw=np.asarray(sws), breakthrough_step=bt)
+            if not ip.full[x]:
+                ip.invade(x, -1, 0.0)
+    else:
+        ip.push_edges(np.flatnonzero(g.is_in_edge))
+    ip.run(stop_at_breakthrough)
+    return ip.result(net)
+
+
+class _Invasion:
+    """Invasion percolation state on a drainage graph: the cluster, trapped pores, the boundary heap."""
+
+    def __init__(self, g, trapping: bool):
+        n = g.n
+        self.g, self.trapping = g, trapping
+        self.full = np.zeros(n, dtype=bool)
+        self.trapped = np.zeros(n, dtype=bool)
+        self.work = (np.zeros(1, dtype=np.int64), np.zeros(n, dtype=np.int64))  # stamp, mark
+        self.seq = np.full(n, -1, dtype=np.int64)
+        self.entry = np.full(n, np.nan)
+        self.via = np.full(g.n_edges, -1, dtype=np.int64)
+        self.heap: list = []
+        self.pcs: list = []
+        self.sws: list = []
+        self.vol_tot = float(g.vol.sum())
+        self.stored = 0.0
+        self.pc = -np.inf
+        self.bt = -1
+        self.k = 0
+
+    def push_edges(self, edges):
+        for e in edges:
+            heapq.heappush(self.heap, (float(self.g.thr[e]), int(e)))
+
+    def invade(self, x: int, e: int, thr: float) -> None:
+        """Fill pore ``x`` (entered through edge ``e``, -1: none) at threshold ``thr``; trap what it cuts off."""
+        g, full = self.g, self.full
+        full[x] = True
+        self.seq[x] = self.k
+        self.entry[x] = thr
+        if e >= 0:
+            self.via[e] = self.k
+        self.stored += g.vol[x]
+        self.pc = max(self.pc, thr)
+        self.pcs.append(self.pc)
+        self.sws.append(1.0 - self.stored / self.vol_tot)
+        self.k += 1
+        for p in range(g.indptr[x], g.indptr[x + 1]):
+            if not full[g.nbr[p]]:
+                heapq.heappush(self.heap, (float(g.thr[g.nbr_edge[p]]), int(g.nbr_edge[p])))
+        if self.trapping:
+            seeds = g.nbr[g.indptr[x]:g.indptr[x + 1]]
+            seeds = seeds[~full[seeds] & ~self.trapped[seeds]]
+            if seeds.size:
+                kern._trapped_from(seeds.astype(np.int64), (g.indptr, g.nbr, g.is_outlet, g.key),
+                                   (full, self.trapped), self.work)
+
+    def run(self, stop_at_breakthrough: bool) -> None:
+        """Invade through the cheapest boundary throat until none is left (or at breakthrough)."""
+        g, n = self.g, self.g.n
+        while self.heap:
+            thr, e = heapq.heappop(self.heap)
+            a, b = int(g.a[e]), int(g.b[e])
+            x = b if (a == n or self.full[a]) else a
+            if self.full[x] or self.trapped[x]:
+                continue
+            self.invade(x, e, thr)
+            if self.bt < 0 and g.is_outlet[x]:
+                self.bt = self.k - 1
+                if stop_at_breakthrough:
+                    break
+
+    def result(self, net: Network) -> InvasionResult:
+        """The outcome on ``net``'s pores and throats (dropped ones: -1 / NaN / False)."""
+        g = self.g
+        n_p = net.n_pores
+        ps = np.full(n_p, -1, dtype=np.int64)
+        ps[g.keep] = self.seq
+        pe = np.full(n_p, np.nan)
+        pe[g.keep] = self.entry
+        ts = np.full(net.n_throats, -1, dtype=np.int64)
+        m = g.throat >= 0
+        ts[g.throat[m]] = self.via[m]
+        tr = np.zeros(n_p, dtype=bool)
+        tr[g.keep] = self.trapped
+        return InvasionResult(pore_sequence=ps, pore_entry_pressure=pe, throat_sequence=ts, trapped=tr,
+                              capillary_pressure=np.asarray(self.pcs), sw=np.asarray(self.sws),
+                              breakthrough_step=self.bt)

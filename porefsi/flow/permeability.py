@@ -196,6 +196,63 @@ def _solve_conduit(net, ax, keep, g, viscosity, dp, solver, rtol):
     return P, q_in, q_out, info
 
 
+def _check_args(viscosity, dp, rtol, boundary) -> None:
+    """One-line InputError for a non-positive/non-finite number, ``rtol >= 1`` or an unknown boundary."""
+    for label, val in (("viscosity", viscosity), ("dp", dp), ("rtol", rtol)):
+        try:
+            ok = bool(np.isfinite(val) and val > 0)
+        except (TypeError, ValueError):  # not one number (None, a string, a list, ...)
+            ok = False
+        if not ok:
+            raise InputError(f"{label} must be a positive finite number, got {val!r}")
+    if rtol >= 1:  # CG would accept its zero start: no flow solved, a meaningless k
+        raise InputError(f"rtol is CG's relative residual and must be < 1, got {rtol!r}")
+    if boundary not in ("conduit", "centre"):
+        raise InputError(f"unknown boundary {boundary!r}; use 'conduit' (default) or 'centre'")
+
+
+def _flowing_pores(net: Network, ax: int, boundary: str):
+    """Pores on clusters joining the two faces of ``ax`` and the cluster counts; NetworkError if none."""
+    name = AXES[ax]
+    net.require_inlet_outlet(ax)
+    inlet, outlet = net.inlet(ax), net.outlet(ax)
+    both = np.flatnonzero(inlet & outlet)
+    if boundary == "centre" and both.size:
+        p = int(both[0])
+        raise NetworkError(
+            f"{both.size} pore(s) (e.g. pore {p}, radius {net.pore_radius[p]:.3g} m) touch both the "
+            f"{name}min and {name}max faces of a box {net.extent[ax]:.3g} m long: with boundary='centre' "
+            f"its pressure would be both dp and 0; use boundary='conduit' or a longer image along {name}"
+        )
+    keep, n_comp, n_keep_comp = net.spanning_clusters(ax)
+    if not keep.any():
+        raise NetworkError(
+            f"no connected path of pores joins the {name}min face to the {name}max face "
+            f"({int(inlet.sum())} inlet and {int(outlet.sum())} outlet pores in {n_comp} clusters); "
+            f"nothing flows along {name}: choose another --axis or a larger image"
+        )
+    return keep, n_comp - n_keep_comp
+
+
+def _result(net, ax, keep, solved, viscosity, dp) -> PermeabilityResult:
+    """The :class:`PermeabilityResult` of a solve ``solved = (P, q_in, q_out, info, n_excluded_clusters, t0)``."""
+    P, q_in, q_out, info, n_excl, t0 = solved
+    length = float(net.extent[ax])
+    area = float(np.prod(np.delete(net.extent, ax)))
+    k = q_in * viscosity * length / (area * dp)
+    info.update(
+        flow_rate_in=q_in, flow_rate_out=q_out, mass_balance_error=abs(q_in - q_out) / abs(q_in) if q_in else 0.0,
+        n_excluded_pores=int(net.n_pores - keep.sum()), n_excluded_clusters=n_excl,
+        n_inlet=int((net.inlet(ax) & keep).sum()), n_outlet=int((net.outlet(ax) & keep).sum()),
+        viscosity=float(viscosity), dp=float(dp), seconds=time.perf_counter() - t0,
+    )
+    P.setflags(write=False)
+    return PermeabilityResult(
+        k_m2=float(k), k_mD=float(k / MILLIDARCY), flow_rate=q_in, pressure=P, axis=AXES[ax], length=length,
+        area=area, n_pores_solved=int(keep.sum()), info=info,
+    )
+
+
 def absolute_permeability(
     net: Network,
     axis: str | int = "x",
@@ -219,14 +276,11 @@ def absolute_permeability(
     dp : float
         Pressure drop, Pa, > 0. k does not depend on it; Q and the pressures scale with it.
     boundary : {'conduit', 'centre'}
-        'conduit' (default): face pores joined to the reservoirs through boundary conduits from
-        the pore centre to the face (the flow path spans the box, as in the drainage model).
-        'centre': the reservoir pressures imposed at the face pore centres (as OpenPNM's
-        ``StokesFlow`` with value conditions on the face pores); biased high, since the box
-        length divides a flow driven over the shorter centre-to-centre distance.
+        'conduit' (default): face pores joined to the reservoirs by boundary conduits to the face;
+        'centre': reservoir pressures at the face pore centres (OpenPNM's ``StokesFlow`` with value
+        conditions); biased high (module docstring).
     solver : {'auto', 'direct', 'cg'}
-        SuperLU (``scipy.sparse.linalg.spsolve``) or conjugate gradients with a smoothed-aggregation
-        AMG preconditioner; 'auto' is direct up to 5 000 unknowns (round-off exact), CG above.
+        SuperLU, or CG with smoothed-aggregation AMG; 'auto': direct up to 5 000 unknowns.
     rtol : float
         Relative residual required of CG, in (0, 1) (checked for every solver).
 
@@ -248,13 +302,10 @@ def absolute_permeability(
 
     Notes
     -----
-    Clusters that do not touch both the inlet and the outlet face carry no flow; they are left out
-    of the system (their pressures are NaN) rather than regularised, so the matrix of the remaining
-    pores is SPD. With 'conduit', flow in is the sum over the inlet boundary conduits and flow out
-    the sum over the outlet ones. With 'centre', flow in is measured on the throats leaving the
-    inlet pores and flow out on those entering the outlet pores (an inlet–outlet throat carries
-    :math:`g \Delta P`, an inlet–inlet throat nothing). Their relative difference is reported as
-    ``info['mass_balance_error']``.
+    Clusters that do not touch both faces carry no flow and are left out (NaN pressures), so the
+    matrix is SPD. Flow in and out are summed over the inlet and outlet boundary conduits
+    ('conduit') or over the throats leaving the inlet and entering the outlet pores ('centre');
+    their relative difference is ``info['mass_balance_error']``.
 
     Examples
     --------
@@ -273,65 +324,12 @@ def absolute_permeability(
     """
     t0 = time.perf_counter()
     ax = axis_index(axis)
-    name = AXES[ax]
-    for label, val in (("viscosity", viscosity), ("dp", dp), ("rtol", rtol)):
-        try:
-            ok = bool(np.isfinite(val) and val > 0)
-        except (TypeError, ValueError):  # not one number (None, a string, a list, ...)
-            ok = False
-        if not ok:
-            raise InputError(f"{label} must be a positive finite number, got {val!r}")
-    if rtol >= 1:  # CG would accept its zero start: no flow solved, a meaningless k
-        raise InputError(f"rtol is CG's relative residual and must be < 1, got {rtol!r}")
-    if boundary not in ("conduit", "centre"):
-        raise InputError(f"unknown boundary {boundary!r}; use 'conduit' (default) or 'centre'")
-    net.require_inlet_outlet(ax)
-    inlet, outlet = net.inlet(ax), net.outlet(ax)
-    both = np.flatnonzero(inlet & outlet)
-    if boundary == "centre" and both.size:
-        p = int(both[0])
-        raise NetworkError(
-            f"{both.size} pore(s) (e.g. pore {p}, radius {net.pore_radius[p]:.3g} m) touch both the "
-            f"{name}min and {name}max faces of a box {net.extent[ax]:.3g} m long: with boundary='centre' "
-            f"its pressure would be both dp and 0; use boundary='conduit' or a longer image along {name}"
-        )
-    keep, n_comp, n_keep_comp = net.spanning_clusters(ax)
-    if not keep.any():
-        raise NetworkError(
-            f"no connected path of pores joins the {name}min face to the {name}max face "
-            f"({int(inlet.sum())} inlet and {int(outlet.sum())} outlet pores in {n_comp} clusters); "
-            f"nothing flows along {name}: choose another --axis or a larger image"
-        )
+    _check_args(viscosity, dp, rtol, boundary)
+    keep, n_excl = _flowing_pores(net, ax, boundary)
     g = conduit_conductance(net, viscosity)
     if boundary == "conduit":
         P, q_in, q_out, info = _solve_conduit(net, ax, keep, g, viscosity, dp, solver, rtol)
     else:
         P, q_in, q_out, info = _solve_centre(net, ax, keep, g, dp, solver, rtol)
-    length = float(net.extent[ax])
-    area = float(np.prod(np.delete(net.extent, ax)))
-    k = q_in * viscosity * length / (area * dp)
     info = {"boundary": boundary, **info}
-    info.update(
-        flow_rate_in=q_in,
-        flow_rate_out=q_out,
-        mass_balance_error=abs(q_in - q_out) / abs(q_in) if q_in else 0.0,
-        n_excluded_pores=int(net.n_pores - keep.sum()),
-        n_excluded_clusters=n_comp - n_keep_comp,
-        n_inlet=int((inlet & keep).sum()),
-        n_outlet=int((outlet & keep).sum()),
-        viscosity=float(viscosity),
-        dp=float(dp),
-        seconds=time.perf_counter() - t0,
-    )
-    P.setflags(write=False)
-    return PermeabilityResult(
-        k_m2=float(k),
-        k_mD=float(k / MILLIDARCY),
-        flow_rate=q_in,
-        pressure=P,
-        axis=name,
-        length=length,
-        area=area,
-        n_pores_solved=int(keep.sum()),
-        info=info,
-    )
+    return _result(net, ax, keep, (P, q_in, q_out, info, n_excl, t0), viscosity, dp)

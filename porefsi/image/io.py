@@ -126,6 +126,21 @@ def segment(
     [[[1, 0], [1, 0]]]
     """
     a = np.asarray(array)
+    _check_segment_args(a, threshold, pore_value, pore_above)
+    if threshold is not None:
+        pore, how = _threshold_mask(a, threshold, pore_above)
+    elif pore_value is not None:
+        pore, how = _value_mask(a, pore_value)
+    else:
+        pore, how = _two_valued_mask(a)
+    if invert:
+        pore = ~pore
+        how = f"not ({how})"
+    return _pore_uint8(pore, a, how)
+
+
+def _check_segment_args(a: np.ndarray, threshold, pore_value, pore_above: bool) -> None:
+    """Refuse non-numeric, empty or NaN images and contradictory options of :func:`segment`."""
     if a.dtype.kind not in "biuf":
         raise InputError(f"image dtype {a.dtype} is not numeric; pass a bool, integer or float array")
     if a.size == 0:
@@ -141,44 +156,54 @@ def segment(
         raise InputError(
             f"image holds {int(np.isnan(a).sum())} NaN voxels; fill or mask them before segmenting"
         )
-    if threshold is not None:
-        t = float(threshold)
-        if math.isnan(t):
-            raise InputError("threshold is NaN; pass a number (pore = value <= threshold)")
-        pore = a > t if pore_above else a <= t
-        how = f"value {'>' if pore_above else '<='} {threshold:g}"
-    elif pore_value is not None:
-        v = float(pore_value)
-        if math.isnan(v):
-            raise InputError("pore_value is NaN; pass the value that marks pore voxels")
-        pore = a == v
-        how = f"value == {pore_value:g}"
-        if not pore.any():
-            raise InputError(
-                f"pore_value={pore_value:g} does not occur in the image (values found: "
-                f"{_distinct(a)}...); pass one of the values present"
-            )
-    elif a.dtype == bool:
-        pore, how = a, "True"
+
+
+def _threshold_mask(a: np.ndarray, threshold: float, pore_above: bool) -> tuple[np.ndarray, str]:
+    """Grey image: pore where ``a <= threshold`` (or ``>`` with ``pore_above``), and how it was chosen."""
+    t = float(threshold)
+    if math.isnan(t):
+        raise InputError("threshold is NaN; pass a number (pore = value <= threshold)")
+    pore = a > t if pore_above else a <= t
+    return pore, f"value {'>' if pore_above else '<='} {threshold:g}"
+
+
+def _value_mask(a: np.ndarray, pore_value: float) -> tuple[np.ndarray, str]:
+    """Labelled image: pore where ``a == pore_value``, and how it was chosen."""
+    v = float(pore_value)
+    if math.isnan(v):
+        raise InputError("pore_value is NaN; pass the value that marks pore voxels")
+    pore = a == v
+    if not pore.any():
+        raise InputError(
+            f"pore_value={pore_value:g} does not occur in the image (values found: "
+            f"{_distinct(a)}...); pass one of the values present"
+        )
+    return pore, f"value == {pore_value:g}"
+
+
+def _two_valued_mask(a: np.ndarray) -> tuple[np.ndarray, str]:
+    """Bool image (True = pore) or two-valued ``{0, v}`` image (``v`` = pore); anything else refused."""
+    if a.dtype == bool:
+        return a, "True"
+    if a.dtype == np.uint8:  # a histogram, no full-size temporaries (a 1000^3 image: 3 GB saved)
+        vals = _distinct(a, limit=3)
+        lo, hi, two = vals[0], vals[-1], len(vals) <= 2
     else:
-        if a.dtype == np.uint8:  # a histogram, no full-size temporaries (a 1000^3 image: 3 GB saved)
-            vals = _distinct(a, limit=3)
-            lo, hi, two = vals[0], vals[-1], len(vals) <= 2
-        else:
-            lo, hi = a.min(), a.max()
-            two = lo == hi or bool(((a == lo) | (a == hi)).all())
-        if not two or (lo != hi and lo != 0 and hi != 0):
-            vals = _distinct(a)
-            n = "more than two" if not two else "two nonzero"
-            raise InputError(
-                f"image has {n} distinct values ({', '.join(map(str, vals))}{', ...' if len(vals) >= 8 else ''}) "
-                "so which is pore is ambiguous; pass threshold=T (pore = value <= T; CLI --threshold, "
-                "add --pore-above for bright pores) or pore_value=V (pore = value == V; CLI --pore-value)"
-            )
-        pore, how = a != 0, "nonzero"
-    if invert:
-        pore = ~pore
-        how = f"not ({how})"
+        lo, hi = a.min(), a.max()
+        two = lo == hi or bool(((a == lo) | (a == hi)).all())
+    if not two or (lo != hi and lo != 0 and hi != 0):
+        vals = _distinct(a)
+        n = "more than two" if not two else "two nonzero"
+        raise InputError(
+            f"image has {n} distinct values ({', '.join(map(str, vals))}{', ...' if len(vals) >= 8 else ''}) "
+            "so which is pore is ambiguous; pass threshold=T (pore = value <= T; CLI --threshold, "
+            "add --pore-above for bright pores) or pore_value=V (pore = value == V; CLI --pore-value)"
+        )
+    return a != 0, "nonzero"
+
+
+def _pore_uint8(pore: np.ndarray, a: np.ndarray, how: str) -> np.ndarray:
+    """``pore`` as a uint8 array that never aliases the caller's ``a``; all-solid/all-pore refused."""
     if pore is not a and pore.flags.c_contiguous:
         out = pore.view(np.uint8)  # a fresh mask: no copy needed
     else:  # never alias the caller's array
@@ -398,12 +423,7 @@ def read_image(path, *, voxel_size: float | None = None, raw: RawLayout | None =
     """
     if voxel_size is not None:  # before reading: a bad value must not surface as a read error
         voxel_size = positive_length(voxel_size, "voxel_size", "; pass a number such as 5.345e-6 (CLI --voxel-size M)")
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"image file {p} does not exist; check the path (run from the right directory?)")
-    if p.is_dir():
-        raise InputError(f"{p} is a directory; pass an image file ({', '.join(READ_FORMATS)})")
-    suffix = "".join(p.suffixes[-2:]).lower() if p.name.lower().endswith(".raw.gz") else p.suffix.lower()
+    p, suffix = _image_path(path)
     try:
         arr, file_vs, origin = _read_any(p, suffix, raw, key, mhd_unit, voxel_size)
     except InputError:
@@ -414,11 +434,8 @@ def read_image(path, *, voxel_size: float | None = None, raw: RawLayout | None =
             else f"{type(exc).__name__}: {exc}"
         raise InputError(f"cannot read {p} as {suffix} ({cause}); is the file complete "
                          "and of the format its suffix says?") from None
-    if voxel_size is not None:
-        vs = voxel_size
-    elif file_vs is not None:
-        vs = file_vs
-    else:
+    vs = voxel_size if voxel_size is not None else file_vs
+    if vs is None:
         raise InputError(
             f"voxel size unknown for {p}: the file does not store one; pass voxel_size=... in metres "
             "(CLI --voxel-size M, e.g. 5.345e-6)"
@@ -426,6 +443,15 @@ def read_image(path, *, voxel_size: float | None = None, raw: RawLayout | None =
     check_voxel_size(vs, "voxel_size (--voxel-size)" if voxel_size is not None else f"the voxel size stored in {p}")
     return VoxelImage(segment(arr, **segmentation), vs, np.zeros(3) if origin is None else origin)
 
+
+def _image_path(path) -> tuple[Path, str]:
+    """``path`` as a Path to an existing file, and its lower-case suffix (``.raw.gz`` kept whole)."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"image file {p} does not exist; check the path (run from the right directory?)")
+    if p.is_dir():
+        raise InputError(f"{p} is a directory; pass an image file ({', '.join(READ_FORMATS)})")
+    return p, "".join(p.suffixes[-2:]).lower() if p.name.lower().endswith(".raw.gz") else p.suffix.lower()
 
 # --------------------------------------------------------------------------------------------
 # writers

@@ -153,55 +153,22 @@ def sphere_lattice(
     if len(n) != 3 or min(n) < 1:
         raise InputError(f"n must be 3 positive ints (spheres per axis), got {n!r}")
     spacing = _positive_int("spacing", spacing)
-    n_p = int(np.prod(n))
-    R = np.asarray(pore_radius, dtype=float)
-    R = np.full(n_p, float(R)) if R.ndim == 0 else R.reshape(-1)
-    if R.shape != (n_p,) or not np.all(np.isfinite(R)) or R.min() < 1:
-        raise InputError(f"pore_radius must be >= 1 voxel, one value or {n_p} values; got {pore_radius!r}")
+    R = _per_item(pore_radius, int(np.prod(n)), "pore_radius", 1.0)
     grid = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), axis=-1).reshape(-1, 3)
-    ids = np.arange(n_p).reshape(n)
-    edges = []
-    for ax in range(3):
-        sl_lo = [slice(None)] * 3
-        sl_hi = [slice(None)] * 3
-        sl_lo[ax] = slice(0, -1)
-        sl_hi[ax] = slice(1, None)
-        edges.append(np.stack([ids[tuple(sl_lo)].ravel(), ids[tuple(sl_hi)].ravel()], axis=1))
-    conns = np.concatenate(edges).astype(np.int64)
-    n_t = conns.shape[0]
-    r = np.asarray(throat_radius, dtype=float)
-    r = np.full(n_t, float(r)) if r.ndim == 0 else r.reshape(-1)
-    if r.shape != (n_t,) or not np.all(np.isfinite(r)) or (n_t and r.min() < 0.5):
-        raise InputError(f"throat_radius must be >= 0.5 voxel, one value or {n_t} values; got {throat_radius!r}")
-    if n_t:
-        rmin = np.minimum(R[conns[:, 0]], R[conns[:, 1]])
-        if np.any(r >= rmin):
-            raise InputError("every throat_radius must be smaller than both of its sphere radii")
-        if np.any(R[conns[:, 0]] + R[conns[:, 1]] >= spacing):
-            raise InputError(
-                f"spheres overlap: spacing {spacing} must exceed the sum of neighbouring radii "
-                f"(largest {float((R[conns[:, 0]] + R[conns[:, 1]]).max()):g}); increase spacing"
-            )
-    end = np.zeros(n_p, bool)
-    for ax in range(3):
-        end |= (grid[:, ax] == 0) | (grid[:, ax] == n[ax] - 1)
-    if margin is None:
-        margin = int(min(R[end].min(), np.ceil(0.7 * R[end].max())))
-    margin = _positive_int("margin", margin)
-    if np.any(R[end] < margin):
-        raise InputError(
-            f"margin {margin} exceeds the radius of an end sphere ({R[end].min():g}): it would not "
-            "touch the faces; lower margin"
-        )
+    conns = _lattice_edges(n)
+    r = _per_item(throat_radius, conns.shape[0], "throat_radius", 0.5)
+    _check_lattice_sizes(R, r, conns, spacing)
+    end = np.any((grid == 0) | (grid == np.array(n) - 1), axis=1)  # spheres on the lattice's faces
+    margin = _lattice_margin(R[end], margin)
     shape = tuple(2 * margin + spacing * (k - 1) + 1 for k in n)
     cvox = margin + spacing * grid
     phases = np.zeros(shape, np.uint8)
-    for p in range(n_p):
-        _paint_sphere(phases, cvox[p], R[p])
-    for t in range(n_t):
-        _paint_cylinder(phases, cvox[conns[t, 0]], cvox[conns[t, 1]], r[t])
+    for c, rp in zip(cvox, R, strict=True):
+        _paint_sphere(phases, c, rp)
+    for (a, b), rt in zip(conns, r, strict=True):
+        _paint_cylinder(phases, cvox[a], cvox[b], rt)
     img = VoxelImage(phases, voxel_size)
-    lt = spacing - np.sqrt(R[conns[:, 0]] ** 2 - r**2) - np.sqrt(R[conns[:, 1]] ** 2 - r**2)
+    lt = spacing - np.sqrt(R[conns[:, 0]] ** 2 - r**2) - np.sqrt(R[conns[:, 1]] ** 2 - r**2)  # cylinder part
     return SyntheticLattice(
         image=img,
         pore_centres=img.voxel_centres(cvox),
@@ -212,6 +179,54 @@ def sphere_lattice(
         throat_length=lt * img.voxel_size,
         porosity=float(np.count_nonzero(phases)) / phases.size,
     )
+
+
+def _per_item(value, count: int, name: str, least: float) -> np.ndarray:
+    """``value`` (one number or ``count`` numbers, voxels) as a float array, each finite and >= ``least``."""
+    a = np.asarray(value, dtype=float)
+    a = np.full(count, float(a)) if a.ndim == 0 else a.reshape(-1)
+    if a.shape != (count,) or not np.all(np.isfinite(a)) or (count and a.min() < least):
+        raise InputError(f"{name} must be >= {least:g} voxel, one value or {count} values; got {value!r}")
+    return a
+
+
+def _lattice_edges(n: tuple[int, int, int]) -> np.ndarray:
+    """Nearest-neighbour pairs of an ``n`` lattice of spheres (C order ids), shape (n_t, 2), x then y then z."""
+    ids = np.arange(int(np.prod(n))).reshape(n)
+    edges = []
+    for ax in range(3):
+        sl_lo = [slice(None)] * 3
+        sl_hi = [slice(None)] * 3
+        sl_lo[ax] = slice(0, -1)
+        sl_hi[ax] = slice(1, None)
+        edges.append(np.stack([ids[tuple(sl_lo)].ravel(), ids[tuple(sl_hi)].ravel()], axis=1))
+    return np.concatenate(edges).astype(np.int64)
+
+
+def _check_lattice_sizes(R: np.ndarray, r: np.ndarray, conns: np.ndarray, spacing: int) -> None:
+    """Throats narrower than both their spheres; neighbouring spheres that do not overlap."""
+    if not conns.shape[0]:
+        return
+    if np.any(r >= np.minimum(R[conns[:, 0]], R[conns[:, 1]])):
+        raise InputError("every throat_radius must be smaller than both of its sphere radii")
+    if np.any(R[conns[:, 0]] + R[conns[:, 1]] >= spacing):
+        raise InputError(
+            f"spheres overlap: spacing {spacing} must exceed the sum of neighbouring radii "
+            f"(largest {float((R[conns[:, 0]] + R[conns[:, 1]]).max()):g}); increase spacing"
+        )
+
+
+def _lattice_margin(r_end: np.ndarray, margin: int | None) -> int:
+    """Voxels between the image faces and the centres of the end spheres (default: they cut the faces)."""
+    if margin is None:
+        margin = int(min(r_end.min(), np.ceil(0.7 * r_end.max())))
+    margin = _positive_int("margin", margin)
+    if np.any(r_end < margin):
+        raise InputError(
+            f"margin {margin} exceeds the radius of an end sphere ({r_end.min():g}): it would not "
+            "touch the faces; lower margin"
+        )
+    return margin
 
 
 def _box(shape, c, h):
@@ -246,6 +261,25 @@ def _disc_pixels(r):
     h = int(np.floor(r))
     u, v = np.meshgrid(np.arange(-h - 1, h + 2), np.arange(-h - 1, h + 2), indexing="ij")
     return u, v, (u * u + v * v) <= r * r
+
+
+def _tube_section(shape2: tuple[int, int], radii: np.ndarray, centres: np.ndarray):
+    """Voxelised discs of ``radii`` at ``centres`` (pixels) in a ``shape2`` section.
+
+    Returns the section (uint8, 1 = pore), each disc's pixel area and the radius of the largest
+    disc about its centre inside the union of its pore pixels (the nearest solid pixel square).
+    """
+    section = np.zeros(shape2, np.uint8)
+    area = np.empty(radii.size)
+    r_in = np.empty(radii.size)
+    for c, (rc, cc) in enumerate(zip(radii, centres, strict=True)):
+        u, v, inside = _disc_pixels(rc)
+        area[c] = inside.sum()
+        du = np.maximum(np.abs(u) - 0.5, 0.0)
+        dv = np.maximum(np.abs(v) - 0.5, 0.0)
+        r_in[c] = np.sqrt(du**2 + dv**2)[~inside].min()
+        section[u[inside] + cc[0], v[inside] + cc[1]] = 1
+    return section, area, r_in
 
 
 def cylinder_bundle(
@@ -305,17 +339,7 @@ def cylinder_bundle(
         raise InputError(f"shape {shape!r} cannot hold the tubes; it needs a cross-section of at least {cross}")
     pos = gap + np.concatenate(([0], np.cumsum(widths + gap)[:-1])) + widths // 2
     centres = np.stack([pos, np.full(radii.size, gap + widths.max() // 2)], axis=1)
-    section = np.zeros((shape[others[0]], shape[others[1]]), np.uint8)
-    area = np.empty(radii.size)
-    r_in = np.empty(radii.size)
-    for c, (rc, cc) in enumerate(zip(radii, centres, strict=True)):
-        u, v, inside = _disc_pixels(rc)
-        area[c] = inside.sum()
-        # largest disc about the axis inside the union of pore pixels: nearest solid pixel square
-        du = np.maximum(np.abs(u) - 0.5, 0.0)
-        dv = np.maximum(np.abs(v) - 0.5, 0.0)
-        r_in[c] = np.sqrt(du**2 + dv**2)[~inside].min()
-        section[u[inside] + cc[0], v[inside] + cc[1]] = 1
+    section, area, r_in = _tube_section((shape[others[0]], shape[others[1]]), radii, centres)
     phases = np.moveaxis(np.repeat(section[:, :, None], shape[ax], axis=2), 2, ax)
     img = VoxelImage(np.ascontiguousarray(phases), voxel_size)
     vs = img.voxel_size

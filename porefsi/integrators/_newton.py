@@ -11,6 +11,21 @@ from porefsi.errors import ConvergenceError
 __all__ = ["newton"]
 
 
+def _step(residual, x: np.ndarray, dx: np.ndarray, nr: float, line_search: bool):
+    """``x + alpha dx`` with the step halved (to 1/32 at most) while |r| misses the Armijo decrease.
+
+    Returns the new iterate, its residual, the residual's norm and its scale.
+    """
+    alpha = 1.0
+    while True:
+        x_try = x + alpha * dx
+        r_try, scale_try = residual(x_try)
+        nr_try = float(np.linalg.norm(r_try))
+        if not line_search or nr_try <= (1.0 - 1e-4 * alpha) * nr or alpha < 1.0 / 32.0:
+            return x_try, r_try, nr_try, scale_try
+        alpha *= 0.5
+
+
 def newton(
     residual: Callable[[np.ndarray], tuple[np.ndarray, float]],
     jacobian: Callable[[np.ndarray], object],
@@ -80,15 +95,7 @@ def newton(
         n_solves += 1
         if not np.all(np.isfinite(dx)):
             raise ConvergenceError(f"{what}: Newton update is not finite; the tangent is singular", history)
-        alpha = 1.0
-        while True:
-            x_try = x + alpha * dx
-            r_try, scale_try = residual(x_try)
-            nr_try = float(np.linalg.norm(r_try))
-            if not line_search or nr_try <= (1.0 - 1e-4 * alpha) * nr or alpha < 1.0 / 32.0:
-                break
-            alpha *= 0.5
-        x, r, nr, scale = x_try, r_try, nr_try, scale_try
+        x, r, nr, scale = _step(residual, x, dx, nr, line_search)
         history.append(nr)
     raise ConvergenceError(
         f"{what}: not converged in {max_iter} iterations (|r| {history[0]:.3e} -> {history[-1]:.3e}, "

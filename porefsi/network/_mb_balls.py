@@ -188,6 +188,77 @@ def _owner(v):
 
 
 @jit
+def _joins(dt2, balls, sqrt_tab, r, centre, rk, rules):
+    """Whether a ball of radius ``rk`` centred at ``centre`` may join the family of master ball ``r``.
+
+    ``rules = (extent, ratio)``: its centre lies within ``extent`` master radii of the master's
+    centre, or it is clearly smaller (``rk < ratio * R_master``).
+    """
+    ny, nz = dt2.shape[1], dt2.shape[2]
+    q = np.int64(balls[r])
+    qi, qj, ql = q // (ny * nz), (q // nz) % ny, q % nz
+    s = (qi - centre[0]) ** 2 + (qj - centre[1]) ** 2 + (ql - centre[2]) ** 2
+    rm = sqrt_tab[dt2[qi, qj, ql]]
+    reach = rules[0] * rm
+    return s < reach * reach or rk < rules[1] * rm
+
+
+@jit
+def _scan_ball(dt2, balls, sqrt_tab, labels, fam, k, rules):
+    """Scan the voxels of ball ``k``: paint the unpainted ones, flag its core, find the ball to adopt.
+
+    ``fam = (master, stamp)`` (``stamp[r] == k``: master ``r`` already refused ``k``); ``rules =
+    (extent, ratio, core^2)``. Returns the first-visited (largest) covering ball whose family
+    ``k`` may join (:func:`_joins`), or ``balls.size`` if none.
+    """
+    nx, ny, nz = dt2.shape
+    master, stamp = fam
+    p = np.int64(balls[k])
+    i, j, l = p // (ny * nz), (p // nz) % ny, p % nz
+    d2 = dt2[i, j, l]
+    rk, lim, cl = sqrt_tab[d2], d2 - 1, rules[2] * d2
+    h = _isqrt(lim)
+    best = balls.size
+    for a in range(max(i - h, 0), min(i + h, nx - 1) + 1):
+        da = (a - i) * (a - i)
+        hb = _isqrt(lim - da)
+        for b in range(max(j - hb, 0), min(j + hb, ny - 1) + 1):
+            dab = da + (b - j) * (b - j)
+            w = _isqrt(lim - dab)
+            for c in range(max(l - w, 0), min(l + w, nz - 1) + 1):
+                v = labels[a, b, c]
+                if v == -1:  # paint (flagged if in k's core)
+                    labels[a, b, c] = -2 - k if dab + (c - l) * (c - l) < cl else k
+                    continue
+                o = _owner(v)
+                if o < best and stamp[master[o]] != k:
+                    if _joins(dt2, balls, sqrt_tab, master[o], (i, j, l), rk, rules):
+                        best = o
+                    else:
+                        stamp[master[o]] = k
+                if v >= 0 and dab + (c - l) * (c - l) < cl:  # flag a painted voxel of k's core
+                    labels[a, b, c] = -2 - v
+    return best
+
+
+@jit
+def _claim_ball(dt2, labels, p, k):
+    """Label every voxel of the ball centred at flat index ``p`` with ``k`` (core flags kept)."""
+    nx, ny, nz = dt2.shape
+    i, j, l = p // (ny * nz), (p // nz) % ny, p % nz
+    lim = dt2[i, j, l] - 1
+    h = _isqrt(lim)
+    for a in range(max(i - h, 0), min(i + h, nx - 1) + 1):
+        da = (a - i) * (a - i)
+        hb = _isqrt(lim - da)
+        for b in range(max(j - hb, 0), min(j + hb, ny - 1) + 1):
+            dab = da + (b - j) * (b - j)
+            w = _isqrt(lim - dab)
+            for c in range(max(l - w, 0), min(l + w, nz - 1) + 1):
+                labels[a, b, c] = -2 - k if labels[a, b, c] <= -2 else k
+
+
+@jit
 def _families(dt2, balls, sqrt_tab, extent, ratio, labels, core):
     """Build the master/slave hierarchy of the maximal balls and paint the voxels they cover.
 
@@ -196,14 +267,13 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels, core):
     of its centre) is skipped: it joins the family of the ball owning its centre voxel and paints
     nothing (with ``core > 0`` the balls kept are spaced about ``core`` radii apart along the
     medial axis, so the work per voxel does not grow with the pore radius in voxels; ``core = 0``
-    skips nothing). Every other ball ``k`` scans the voxels it covers (squared distance to its
-    centre ``< dt2``); voxels nobody covers yet are painted ``k``; among the balls that already
-    cover some of its voxels (all at least as large as ``k``) it adopts the first-visited, i.e.
-    largest, one whose family master either lies within ``extent`` master radii of ``k``'s
-    centre or is clearly larger than ``k`` (``R_k < ratio * R_master``). With no such ball ``k``
-    becomes a master (a pore) and claims every voxel of its ball. So a channel narrower than its
-    master stays in the family however long it is, while a uniform channel (no larger master) is
-    cut every ``extent`` radii.
+    skips nothing). Every other ball ``k`` scans the voxels it covers (:func:`_scan_ball`): voxels
+    nobody covers yet are painted ``k``; among the balls that already cover some of its voxels
+    (all at least as large as ``k``) it adopts the first-visited, i.e. largest, one whose family
+    master either lies within ``extent`` master radii of ``k``'s centre or is clearly larger than
+    ``k`` (``R_k < ratio * R_master``). With no such ball ``k`` becomes a master (a pore) and
+    claims every voxel of its ball. So a channel narrower than its master stays in the family
+    however long it is, while a uniform channel (no larger master) is cut every ``extent`` radii.
 
     Parameters
     ----------
@@ -212,10 +282,8 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels, core):
         Linear indices of maximal-ball centres, radius descending.
     sqrt_tab : ndarray of float64
         ``sqrt(n)`` for ``n = 0 .. max(dt2)``.
-    extent : float
-        Family reach, in master radii, for balls of comparable size.
-    ratio : float
-        Balls smaller than ``ratio`` times the master radius join regardless of distance.
+    extent, ratio : float
+        Family reach in master radii; balls smaller than ``ratio`` master radii join at any distance.
     labels : ndarray of int32, shape (nx, ny, nz)
         All -1 on entry; on exit the index of the ball owning each covered voxel, -1 elsewhere.
     core : float
@@ -228,70 +296,25 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels, core):
     n_kept : int
         Balls scanned (not skipped).
     """
-    nx, ny, nz = dt2.shape
     nb = balls.size
     master = np.empty(nb, np.int32)
     stamp = np.full(nb, -1, np.int32)
-    c2 = core * core
+    lf = labels.reshape(-1)
+    rules = (extent, ratio, core * core)
     n_kept = 0
     for k in range(nb):
         p = np.int64(balls[k])
-        i = p // (ny * nz)
-        j = (p // nz) % ny
-        l = p % nz
-        centre = labels[i, j, l]
-        if centre <= -2:
-            master[k] = master[-2 - centre]
+        if lf[p] <= -2:  # centred in a scanned ball's core: join its family unscanned
+            master[k] = master[-2 - lf[p]]
             continue
         n_kept += 1
-        d2 = dt2[i, j, l]
-        rk = sqrt_tab[d2]
-        lim = d2 - 1
-        cl = c2 * d2
-        h = _isqrt(lim)
-        best = nb
-        for a in range(max(i - h, 0), min(i + h, nx - 1) + 1):
-            da = (a - i) * (a - i)
-            hb = _isqrt(lim - da)
-            for b in range(max(j - hb, 0), min(j + hb, ny - 1) + 1):
-                dab = da + (b - j) * (b - j)
-                w = _isqrt(lim - dab)
-                for c in range(max(l - w, 0), min(l + w, nz - 1) + 1):
-                    v = labels[a, b, c]
-                    if v == -1:  # paint (flagged if in k's core)
-                        labels[a, b, c] = -2 - k if dab + (c - l) * (c - l) < cl else k
-                        continue
-                    o = _owner(v)
-                    if o < best:
-                        r = master[o]
-                        if stamp[r] != k:
-                            q = np.int64(balls[r])
-                            qi = q // (ny * nz)
-                            qj = (q // nz) % ny
-                            ql = q % nz
-                            s = (qi - i) * (qi - i) + (qj - j) * (qj - j) + (ql - l) * (ql - l)
-                            rm = sqrt_tab[dt2[qi, qj, ql]]
-                            reach = extent * rm
-                            if s < reach * reach or rk < ratio * rm:
-                                best = o
-                            else:
-                                stamp[r] = k
-                    if v >= 0 and dab + (c - l) * (c - l) < cl:  # flag a painted voxel of k's core
-                        labels[a, b, c] = -2 - v
+        best = _scan_ball(dt2, balls, sqrt_tab, labels, (master, stamp), k, rules)
         if best < nb:
             master[k] = master[best]
         else:
             master[k] = k
-            for a in range(max(i - h, 0), min(i + h, nx - 1) + 1):
-                da = (a - i) * (a - i)
-                hb = _isqrt(lim - da)
-                for b in range(max(j - hb, 0), min(j + hb, ny - 1) + 1):
-                    dab = da + (b - j) * (b - j)
-                    w = _isqrt(lim - dab)
-                    for c in range(max(l - w, 0), min(l + w, nz - 1) + 1):
-                        labels[a, b, c] = -2 - k if labels[a, b, c] <= -2 else k
-    flat = labels.reshape(-1)
-    for n in range(flat.size):
-        if flat[n] <= -2:
-            flat[n] = -2 - flat[n]
+            _claim_ball(dt2, labels, p, k)
+    for n in range(lf.size):
+        if lf[n] <= -2:
+            lf[n] = -2 - lf[n]
     return master, n_kept

@@ -7,10 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from porefsi.network._mb_sections import _constriction_lengths, _sections, _subvoxel_peaks
+from porefsi.network._mb_sections import _constriction_lengths, _sections, _stair_section_peaks, _subvoxel_peaks
 from porefsi.network.network import CIRCLE_SHAPE_FACTOR
 
-__all__ = ["MIN_SEGMENT", "digital_radius", "merge_shallow", "conduit_lengths", "subvoxel_radii", "measure_sections"]
+__all__ = [
+    "MIN_SEGMENT", "digital_radius", "wall_radius", "merge_shallow", "conduit_lengths", "subvoxel_radii",
+    "measure_sections",
+]
 
 #: Smallest segment length of a conduit, in voxels (keeps every Network length > 0).
 MIN_SEGMENT = 0.05
@@ -60,29 +63,56 @@ def digital_radius(dt2: np.ndarray | int) -> np.ndarray:
     return 0.5 * (np.sqrt(d) + np.sqrt(prev[d]))
 
 
-def _radius_table(dt2) -> np.ndarray:
-    """:func:`digital_radius` of every value 0 .. max(dt2) (0 for solid)."""
-    tab = digital_radius(np.maximum(np.arange(int(dt2.max()) + 1), 1))
+def wall_radius(dt2: np.ndarray | int) -> np.ndarray:
+    r"""Radius (voxels) of the measured geometry: from a voxel centre to the wall of the voxel staircase.
+
+    ``sqrt(dt2) - 1/2``: the distance to the face of the nearest solid voxel when it lies along an
+    axis, so exact for flat walls (a slit ``n`` voxels wide reads ``n/2`` at its middle). The image's
+    voxel staircase is the geometry the converged voxel reference solves and the one a voxel
+    refinement (each voxel -> f^3) keeps exactly; its walls are flat at every finer grid, so this
+    convention reads the same radius in metres at every refinement, where :func:`digital_radius`
+    (the midpoint to the nearest representable distance, which assumes curved walls) reads about
+    0.4 voxel of whichever grid higher on the staircase (``docs/extraction.md``).
+
+    Parameters
+    ----------
+    dt2 : array_like of int, >= 1
+
+    Returns
+    -------
+    ndarray of float
+        Radius in voxels, >= 0.5.
+    """
+    return np.sqrt(np.asarray(dt2, dtype=np.float64)) - 0.5
+
+
+def _radius_table(dt2, convention: str = "digital") -> np.ndarray:
+    """Radius of every value 0 .. max(dt2) (0 for solid) under ``convention``."""
+    fn = wall_radius if convention == "wall" else digital_radius
+    tab = fn(np.maximum(np.arange(int(dt2.max()) + 1), 1))
     tab[0] = 0.0
     return tab
 
 
-def subvoxel_radii(dt2, centre, point, conns, r_pore, r_throat):
-    """Pore and throat radii (voxels), throats corrected for the sub-voxel offset of their centres.
+def subvoxel_radii(dt2, centre, point, conns, w):
+    """Pore and throat radii (voxels) of the measured geometry: the voxel staircase's own.
 
-    :func:`porefsi.network._mb_sections._subvoxel_peaks` at the throat points (in the interface
-    plane), never below the digital radius, then clipped to both pore radii. Pore radii stay
-    digital (they also order the pores, largest ball first; their relative error is smaller).
-    On voxelised tubes at random offsets the digital radius reads 0.17-0.33 voxel low on average
-    (radii 1.5-6), the corrected one -0.28..+0.41 (mean +0.06); see ``docs/extraction.md``.
+    Pore: :func:`porefsi.network._mb_sections._subvoxel_peaks` at its master ball's centre voxel
+    (the distance to the nearest solid voxel cube plus the max-norm sub-voxel correction). Throat:
+    :func:`porefsi.network._mb_sections._stair_section_peaks` at the throat point, the largest
+    distance to the staircase over points within half a voxel in the interface plane (exactly the
+    same in metres at every refinement of the image), clipped to both pore radii. ``w`` (the
+    interface's largest ``dt2``) is unused: kept for the caller's signature.
     """
-    tab = _radius_table(dt2)
-    rt = np.maximum(_subvoxel_peaks(dt2, tab, point, 1), r_throat)
+    tab = _radius_table(dt2, "wall")
+    c = np.rint(centre).astype(np.int64)
+    r_pore = _subvoxel_peaks(dt2, tab, c.astype(np.float64))
+    rt = _stair_section_peaks(dt2, point, 0.5, 4)
     rt = np.minimum(rt, np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
     return r_pore, rt
 
 
-def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore):
+def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, convention="wall"):
     """Shape factors and duct fractions from the voxels (voxel units); see ``docs/extraction.md``.
 
     Throat: inscribed radius r (the throat radius), section area A = |vector area of the
@@ -91,7 +121,8 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore):
     throat-area-weighted mean of its throats' G (pnextract's rule), the circle's for a pore
     without throats. Duct lengths: each side's resistance-equivalent constriction length
     (:func:`porefsi.network._mb_sections._constriction_lengths`) makes the throat duct, the rest
-    of the side the pore duct; each at least :data:`MIN_SEGMENT` voxels.
+    of the side the pore duct; each at least :data:`MIN_SEGMENT` voxels. ``convention`` ('wall'
+    or 'digital', the paper's) is the radius table the constriction samples read.
     """
     n_p = r_pore.size
     area_vec, n_faces, n_wall = _sections(labels, conns, np.int64(n_p))
@@ -100,7 +131,7 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore):
     wsum = np.bincount(conns.ravel(), weights=np.repeat(area, 2), minlength=n_p)
     gsum = np.bincount(conns.ravel(), weights=np.repeat(area * throat_G, 2), minlength=n_p)
     pore_G = np.where(wsum > 0, gsum / np.where(wsum > 0, wsum, 1.0), CIRCLE_SHAPE_FACTOR)
-    rad_tab = _radius_table(dt2)
+    rad_tab = _radius_table(dt2, convention)
     d, side_lt = _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 0.25)
     ducts = np.column_stack([d[:, 0] - side_lt[:, 0], side_lt.sum(axis=1), d[:, 1] - side_lt[:, 1]])
     ducts = np.maximum(ducts, MIN_SEGMENT)

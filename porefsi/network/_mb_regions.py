@@ -27,16 +27,88 @@ def _relabel(labels, table):
 # Voxel labels: seeded priority flood on the distance map (marker watershed)
 # --------------------------------------------------------------------------------------------
 @jit
+def _neighbour(n, t, dims):
+    """Flat index of the face neighbour ``t`` (-x, +x, -y, +y, -z, +z) of voxel ``n``, -1 outside."""
+    nx, ny, nz = dims
+    ax, up = t // 2, t % 2
+    if ax == 0:
+        i = n // (ny * nz)
+        return -1 if (i == nx - 1 if up else i == 0) else n + (ny * nz if up else -ny * nz)
+    if ax == 1:
+        j = (n // nz) % ny
+        return -1 if (j == ny - 1 if up else j == 0) else n + (nz if up else -nz)
+    k = n % nz
+    return -1 if (k == nz - 1 if up else k == 0) else n + (1 if up else -1)
+
+
+@jit
+def _sort_by_level(df, lf, buf):
+    """Unlabelled pore voxels into ``buf`` by distance-map level, highest first; (segment starts, top)."""
+    top = 0
+    for n in range(df.size):
+        if lf[n] < 0 and df[n] > top:
+            top = df[n]
+    count = np.zeros(top + 2, np.int64)
+    for n in range(df.size):
+        if lf[n] < 0 and df[n] > 0:
+            count[top - df[n]] += 1
+    start = np.zeros(top + 2, np.int64)
+    for t in range(1, top + 2):
+        start[t] = start[t - 1] + count[t - 1]
+    fill = start.copy()
+    for n in range(df.size):
+        if lf[n] < 0 and df[n] > 0:
+            buf[fill[top - df[n]]] = n
+            fill[top - df[n]] += 1
+    return start, top
+
+
+@jit
+def _flood_level(df, lf, dims, segment, queue, level):
+    """Flood one level: its voxels touching a label start a FIFO growth through voxels ``>= level``.
+
+    ``segment`` is the level's slice of the level-sorted list (read before the queue reaches it).
+    Returns the number of voxels labelled.
+    """
+    tail = 0
+    for s in range(segment.size):
+        n = np.int64(segment[s])
+        if lf[n] != -1:
+            continue
+        for t in range(6):
+            m = _neighbour(n, t, dims)
+            if m >= 0 and lf[m] >= 0:
+                lf[n] = -2 - lf[m]  # pending: invisible to the rest of this scan
+                queue[tail] = n
+                tail += 1
+                break
+    for h in range(tail):
+        n = np.int64(queue[h])
+        lf[n] = -2 - lf[n]
+    head = 0
+    while head < tail:
+        n = np.int64(queue[head])
+        head += 1
+        for t in range(6):
+            m = _neighbour(n, t, dims)
+            if m >= 0 and lf[m] == -1 and df[m] >= level:
+                lf[m] = lf[n]
+                queue[tail] = m
+                tail += 1
+    return tail
+
+
+@jit
 def _flood(dt2, labels, buf, queue):
     """Grow the seed labels over the pore space, highest distance-map values first.
 
     Level by level from the largest ``dt2`` down: the unlabelled voxels of the level that touch
     a labelled face neighbour (C order; label of the first labelled neighbour in the order -x,
     +x, -y, +y, -z, +z) start a first-in first-out growth into every unlabelled pore voxel
-    with ``dt2 >=`` the level. So a region only ever grows through voxels at least as wide as
-    the level being flooded, two floods meet at the narrowest section between them (the
-    saddle of the distance map; on a plateau, half-way), and every region stays 6-connected.
-    Pore voxels not connected to a seed stay -1.
+    with ``dt2 >=`` the level (:func:`_flood_level`). So a region only ever grows through voxels
+    at least as wide as the level being flooded, two floods meet at the narrowest section between
+    them (the saddle of the distance map; on a plateau, half-way), and every region stays
+    6-connected. Pore voxels not connected to a seed stay -1.
 
     Parameters
     ----------
@@ -55,78 +127,30 @@ def _flood(dt2, labels, buf, queue):
     int
         Voxels labelled.
     """
-    nx, ny, nz = dt2.shape
-    nyz = ny * nz
     df = dt2.reshape(-1)
     lf = labels.reshape(-1)
-    top = 0
-    for n in range(df.size):
-        if lf[n] < 0 and df[n] > top:
-            top = df[n]
-    count = np.zeros(top + 2, np.int64)
-    for n in range(df.size):
-        if lf[n] < 0 and df[n] > 0:
-            count[top - df[n]] += 1
-    start = np.zeros(top + 2, np.int64)
-    for t in range(1, top + 2):
-        start[t] = start[t - 1] + count[t - 1]
-    fill = start.copy()
-    for n in range(df.size):
-        if lf[n] < 0 and df[n] > 0:
-            key = top - df[n]
-            buf[fill[key]] = n
-            fill[key] += 1
-    offs = np.array([-nyz, nyz, -nz, nz, -1, 1], np.int64)
+    start, top = _sort_by_level(df, lf, buf)
     done = 0
     for key in range(top):
-        level = top - key
-        tail = 0
-        for s in range(start[key], start[key + 1]):
-            n = np.int64(buf[s])
-            if lf[n] != -1:
-                continue
-            i = n // nyz
-            j = (n // nz) % ny
-            k = n % nz
-            for t in range(6):
-                if (t == 0 and i == 0) or (t == 1 and i == nx - 1) or (t == 2 and j == 0):
-                    continue
-                if (t == 3 and j == ny - 1) or (t == 4 and k == 0) or (t == 5 and k == nz - 1):
-                    continue
-                lab = lf[n + offs[t]]
-                if lab >= 0:
-                    lf[n] = -2 - lab  # pending: invisible to the rest of this scan
-                    queue[tail] = n
-                    tail += 1
-                    break
-        for h in range(tail):
-            n = np.int64(queue[h])
-            lf[n] = -2 - lf[n]
-        head = 0
-        while head < tail:
-            n = np.int64(queue[head])
-            head += 1
-            i = n // nyz
-            j = (n // nz) % ny
-            k = n % nz
-            lab = lf[n]
-            for t in range(6):
-                if (t == 0 and i == 0) or (t == 1 and i == nx - 1) or (t == 2 and j == 0):
-                    continue
-                if (t == 3 and j == ny - 1) or (t == 4 and k == 0) or (t == 5 and k == nz - 1):
-                    continue
-                m = n + offs[t]
-                if lf[m] == -1 and df[m] >= level:
-                    lf[m] = lab
-                    queue[tail] = m
-                    tail += 1
-        done += tail
+        done += _flood_level(df, lf, dt2.shape, buf[start[key]:start[key + 1]], queue, top - key)
     return done
 
 
 # --------------------------------------------------------------------------------------------
 # Throats: interfaces between pore labels
 # --------------------------------------------------------------------------------------------
+@jit
+def _grown(conns, w, point, nf, nt):
+    """The four throat arrays with twice the capacity, their first ``nt`` rows kept."""
+    cap = 2 * conns.shape[0]
+    c2 = np.empty((cap, 2), np.int64)
+    w2 = np.empty(cap, np.int64)
+    p2 = np.empty((cap, 3), np.float64)
+    n2 = np.empty(cap, np.int64)
+    c2[:nt], w2[:nt], p2[:nt], n2[:nt] = conns[:nt], w[:nt], point[:nt], nf[:nt]
+    return c2, w2, p2, n2
+
+
 @jit
 def _interfaces(labels, dt2, n_pores):
     """Aggregate the voxel faces shared by two different pore labels into throats.
@@ -146,11 +170,8 @@ def _interfaces(labels, dt2, n_pores):
     """
     nx, ny, nz = labels.shape
     table = Dict.empty(key_type=types.int64, value_type=types.int64)
-    cap = 256
-    conns = np.empty((cap, 2), np.int64)
-    w = np.empty(cap, np.int64)
-    point = np.empty((cap, 3), np.float64)
-    nf = np.empty(cap, np.int64)
+    conns, w = np.empty((256, 2), np.int64), np.empty(256, np.int64)
+    point, nf = np.empty((256, 3), np.float64), np.empty(256, np.int64)
     nt = 0
     for i in range(nx):
         for j in range(ny):
@@ -159,56 +180,28 @@ def _interfaces(labels, dt2, n_pores):
                 if la < 0:
                     continue
                 for ax in range(3):
-                    a, b, c = i, j, k
-                    if ax == 0:
-                        a += 1
-                        if a >= nx:
-                            continue
-                    elif ax == 1:
-                        b += 1
-                        if b >= ny:
-                            continue
-                    else:
-                        c += 1
-                        if c >= nz:
-                            continue
+                    a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
+                    if a >= nx or b >= ny or c >= nz:
+                        continue
                     lb = labels[a, b, c]
                     if lb < 0 or lb == la:
                         continue
-                    lo = min(la, lb)
-                    hi = max(la, lb)
-                    key = np.int64(lo) * n_pores + hi
-                    val = min(dt2[i, j, k], dt2[a, b, c])
+                    key = np.int64(min(la, lb)) * n_pores + max(la, lb)
                     if key in table:
                         t = table[key]
                     else:
-                        if nt == cap:
-                            cap *= 2
-                            c2 = np.empty((cap, 2), np.int64)
-                            c2[:nt] = conns[:nt]
-                            conns = c2
-                            w2 = np.empty(cap, np.int64)
-                            w2[:nt] = w[:nt]
-                            w = w2
-                            p2 = np.empty((cap, 3), np.float64)
-                            p2[:nt] = point[:nt]
-                            point = p2
-                            n2 = np.empty(cap, np.int64)
-                            n2[:nt] = nf[:nt]
-                            nf = n2
+                        if nt == conns.shape[0]:
+                            conns, w, point, nf = _grown(conns, w, point, nf, nt)
                         t = np.int64(nt)
                         nt += 1
                         table[key] = t
-                        conns[t, 0] = lo
-                        conns[t, 1] = hi
-                        w[t] = -1
-                        nf[t] = 0
+                        conns[t, 0], conns[t, 1] = min(la, lb), max(la, lb)
+                        w[t], nf[t] = -1, 0
                     nf[t] += 1
+                    val = min(dt2[i, j, k], dt2[a, b, c])
                     if val > w[t]:
                         w[t] = val
-                        point[t, 0] = i + 0.5 * (a - i)
-                        point[t, 1] = j + 0.5 * (b - j)
-                        point[t, 2] = k + 0.5 * (c - k)
+                        point[t, 0], point[t, 1], point[t, 2] = 0.5 * (i + a), 0.5 * (j + b), 0.5 * (k + c)
     return conns[:nt].copy(), w[:nt].copy(), point[:nt].copy(), nf[:nt].copy()
 
 

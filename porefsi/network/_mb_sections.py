@@ -16,6 +16,27 @@ from porefsi._numba import jit
 
 
 @jit
+def _wall_edges(labels, i, j, k, ax):
+    """Edges of the face between voxel (i, j, k) and its +``ax`` neighbour that end at the wall.
+
+    The face's four in-plane neighbour positions (the same pair of voxels shifted by one voxel
+    along each in-plane axis, inside the image) count when either voxel there is solid (< 0).
+    """
+    dims = labels.shape
+    n = 0
+    for b in range(3):
+        if b == ax:
+            continue
+        for s in (-1, 1):
+            u = (i + s * (b == 0), j + s * (b == 1), k + s * (b == 2))
+            if u[b] < 0 or u[b] >= dims[b]:
+                continue
+            if labels[u[0], u[1], u[2]] < 0 or labels[u[0] + (ax == 0), u[1] + (ax == 1), u[2] + (ax == 2)] < 0:
+                n += 1
+    return n
+
+
+@jit
 def _sections(labels, conns, n_pores):
     """Vector area, face count and wall-edge count of every throat's interface.
 
@@ -25,9 +46,9 @@ def _sections(labels, conns, n_pores):
     ``-e_ax`` otherwise; their sum is the throat's *vector area* (its length is the area of the
     section projected on the plane it is closest to: exact for a flat section of any orientation,
     the staircase cancels). A *wall edge* is an edge of an interface face whose in-plane
-    neighbouring face position (the same pair of voxels shifted by one voxel along one of the
-    four in-plane directions) has a solid voxel on either side: the interface ends at the wall
-    there. Positions outside the image are not walls (the box cuts the section).
+    neighbouring face position has a solid voxel on either side (:func:`_wall_edges`): the
+    interface ends at the wall there. Positions outside the image are not walls (the box cuts
+    the section).
 
     Parameters
     ----------
@@ -53,9 +74,6 @@ def _sections(labels, conns, n_pores):
     area = np.zeros((n_t, 3), np.float64)
     nf = np.zeros(n_t, np.int64)
     nw = np.zeros(n_t, np.int64)
-    dims = np.array([nx, ny, nz], np.int64)
-    u = np.zeros(3, np.int64)
-    v = np.zeros(3, np.int64)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
@@ -63,39 +81,17 @@ def _sections(labels, conns, n_pores):
                 if la < 0:
                     continue
                 for ax in range(3):
-                    u[0] = i
-                    u[1] = j
-                    u[2] = k
-                    v[0] = i
-                    v[1] = j
-                    v[2] = k
-                    v[ax] += 1
-                    if v[ax] >= dims[ax]:
+                    a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
+                    if a >= nx or b >= ny or c >= nz:
                         continue
-                    lb = labels[v[0], v[1], v[2]]
-                    if lb < 0 or lb == la:
-                        continue
-                    lo = min(la, lb)
-                    hi = max(la, lb)
-                    key = np.int64(lo) * n_pores + hi
-                    if key not in table:
+                    lb = labels[a, b, c]
+                    key = np.int64(min(la, lb)) * n_pores + max(la, lb)
+                    if lb < 0 or lb == la or key not in table:
                         continue
                     t = table[key]
-                    area[t, ax] += 1.0 if la == lo else -1.0
+                    area[t, ax] += 1.0 if la < lb else -1.0
                     nf[t] += 1
-                    for b in range(3):
-                        if b == ax:
-                            continue
-                        for s in (-1, 1):
-                            ub = u[b] + s
-                            if ub < 0 or ub >= dims[b]:
-                                continue
-                            u[b] = ub
-                            v[b] = ub
-                            if labels[u[0], u[1], u[2]] < 0 or labels[v[0], v[1], v[2]] < 0:
-                                nw[t] += 1
-                            u[b] -= s
-                            v[b] -= s
+                    nw[t] += _wall_edges(labels, i, j, k, ax)
     return area, nf, nw
 
 
@@ -103,12 +99,12 @@ def _sections(labels, conns, n_pores):
 def _ridge_radius(dt2, rad_tab, a, b, c, ux, uy, uz):
     """Channel radius at voxel (a, b, c) on a line of unit direction u: the sub-voxel ridge estimate.
 
-    ``f + |g_perp|`` with ``f`` the voxel's radius and ``g_perp`` the central-difference gradient
-    of the radius with its component along u removed (capped at half a voxel diagonal, 0.7071):
-    the estimator of :func:`_subvoxel_peaks` applied across the channel, so a line running beside
-    the channel's axis reads the axis's radius, as the throat radius does at the throat.
+    ``f + max_b |g_perp,b|`` (capped at 1/2) with ``f`` the voxel's radius and ``g_perp`` the
+    central-difference gradient of the radius with its component along u removed: the estimator
+    of :func:`_subvoxel_peaks` applied across the channel, so a sample beside the channel's axis
+    reads the axis's radius, as the throat radius does at the throat.
     """
-    f = rad_tab[dt2[a, b, c]]
+    f = _stair_rad(dt2, a, b, c)
     if f == 0.0:
         return 0.0
     gx = 0.5 * (_rad_at(dt2, rad_tab, a + 1, b, c) - _rad_at(dt2, rad_tab, a - 1, b, c))
@@ -116,7 +112,7 @@ def _ridge_radius(dt2, rad_tab, a, b, c, ux, uy, uz):
     gz = 0.5 * (_rad_at(dt2, rad_tab, a, b, c + 1) - _rad_at(dt2, rad_tab, a, b, c - 1))
     gu = gx * ux + gy * uy + gz * uz
     px, py, pz = gx - gu * ux, gy - gu * uy, gz - gu * uz
-    return f + min(math.sqrt(px * px + py * py + pz * pz), 0.5 * math.sqrt(2.0))
+    return f + min(max(abs(px), abs(py), abs(pz)), 0.5)
 
 
 @jit
@@ -125,7 +121,8 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
 
     Side ``s`` of throat ``t`` is the segment from the centre of pore ``conns[t, s]`` to the throat
     point. It is sampled at the midpoints of ``m = ceil(d / step)`` equal parts; each sample takes
-    the ridge radius (:func:`_ridge_radius`) at the nearest voxel (rounding half up), clamped to
+    the section radius (:func:`_section_radius`: the widest channel centre within the ball
+    inscribed at the sample, in the plane normal to the side), clamped to
     ``[r_throat[t], r_pore[p]]`` (a sample in solid, where the straight line leaves the pore
     space, counts as throat-sized). With ``I = sum (d/m) / r^4`` the side's Hagen–Poiseuille
     integral, the throat length ``L_t`` and pore length ``d - L_t`` of two uniform ducts (radii
@@ -160,16 +157,12 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
                 lt_out[t, s] = 0.5 * d
                 continue
             m = max(1, int(math.ceil(d / step)))
+            e1, e2 = _perp_basis(dx / d, dy / d, dz / d)
             acc = 0.0
             for q in range(m):
                 f = (q + 0.5) / m
-                a = int(math.floor(centre[p, 0] + f * dx + 0.5))
-                b = int(math.floor(centre[p, 1] + f * dy + 0.5))
-                c = int(math.floor(centre[p, 2] + f * dz + 0.5))
-                a = min(max(a, 0), nx - 1)
-                b = min(max(b, 0), ny - 1)
-                c = min(max(c, 0), nz - 1)
-                r = _ridge_radius(dt2, rad_tab, a, b, c, dx / d, dy / d, dz / d)
+                x = (centre[p, 0] + f * dx, centre[p, 1] + f * dy, centre[p, 2] + f * dz)
+                r = _section_radius(dt2, rad_tab, x, (dx / d, dy / d, dz / d), e1, e2)
                 r = min(max(r, rt), R)
                 acc += 1.0 / (r * r * r * r)
             integral = acc * d / m
@@ -178,6 +171,57 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
             lt = (integral - d * inv_p) / (inv_t - inv_p)
             lt_out[t, s] = min(max(lt, 0.0), d)
     return d_out, lt_out
+
+
+@jit
+def _perp_basis(ux, uy, uz):
+    """Two unit vectors orthogonal to the unit vector u and to each other."""
+    if abs(ux) < 0.9:
+        ax, ay, az = 1.0, 0.0, 0.0
+    else:
+        ax, ay, az = 0.0, 1.0, 0.0
+    dot = ax * ux + ay * uy + az * uz
+    ax, ay, az = ax - dot * ux, ay - dot * uy, az - dot * uz
+    n = math.sqrt(ax * ax + ay * ay + az * az)
+    e1 = (ax / n, ay / n, az / n)
+    e2 = (uy * e1[2] - uz * e1[1], uz * e1[0] - ux * e1[2], ux * e1[1] - uy * e1[0])
+    return e1, e2
+
+
+@jit
+def _nearest(x, n):
+    """Index of the voxel nearest to coordinate x (halves up), clipped to [0, n - 1]."""
+    return min(max(int(math.floor(x + 0.5)), 0), n - 1)
+
+
+@jit
+def _section_radius(dt2, rad_tab, x, u, e1, e2):
+    """Channel radius of the cross-section through point x normal to u: the widest ball centred there.
+
+    ``rho`` is the radius at the voxel nearest to x (0 in solid). The voxels nearest to the points
+    ``x + s e1 + t e2`` (integers s, t with ``s^2 + t^2 <= rho^2``: the disc of the ball inscribed
+    at x, so the search stays in the channel and scales with it) are searched for the largest
+    radius, and the ridge estimate (:func:`_ridge_radius`) of that voxel is returned: a line
+    running beside the channel's axis, at any offset the channel's own ball covers, reads the
+    axis's radius at every resolution.
+    """
+    nx, ny, nz = dt2.shape
+    a, b, c = _nearest(x[0], nx), _nearest(x[1], ny), _nearest(x[2], nz)
+    rho = rad_tab[dt2[a, b, c]]
+    if rho == 0.0:
+        return 0.0
+    best, ba, bb, bc = dt2[a, b, c], a, b, c
+    h = int(rho)
+    for s in range(-h, h + 1):
+        for t in range(-h, h + 1):
+            if s * s + t * t > rho * rho:
+                continue
+            i = _nearest(x[0] + s * e1[0] + t * e2[0], nx)
+            j = _nearest(x[1] + s * e1[1] + t * e2[1], ny)
+            k = _nearest(x[2] + s * e1[2] + t * e2[2], nz)
+            if dt2[i, j, k] > best:
+                best, ba, bb, bc = dt2[i, j, k], i, j, k
+    return _ridge_radius(dt2, rad_tab, ba, bb, bc, u[0], u[1], u[2])
 
 
 @jit
@@ -190,19 +234,119 @@ def _rad_at(dt2, rad_tab, a, b, c):
 
 
 @jit
-def _subvoxel_peaks(dt2, rad_tab, points, reach):
+def _stair_rad(dt2, a, b, c):
+    """Distance (voxels) from the centre of voxel (a, b, c) to the nearest solid voxel *cube*; 0 in solid.
+
+    The staircase's own inscribed radius: ``min sqrt(sum_i max(|k_i| - 1/2, 0)^2)`` over the
+    offsets ``k`` of the solid voxels (outside the image is not solid, as in the distance map).
+    The nearest solid centre (``sqrt(dt2)`` away) bounds it by ``sqrt(dt2) - 1/2``
+    (:func:`wall_radius`), equal for an axis-aligned wall; a nearer cube can only have its centre
+    within ``sqrt(dt2) - 1/2 + sqrt(3)/2``, so that box is searched.
+    """
+    nx, ny, nz = dt2.shape
+    if a < 0 or a >= nx or b < 0 or b >= ny or c < 0 or c >= nz:
+        return 0.0
+    d2 = dt2[a, b, c]
+    if d2 == 0:
+        return 0.0
+    best = math.sqrt(d2) - 0.5
+    best2 = best * best
+    h = int(best + 0.8660254) + 1
+    for i in range(max(a - h, 0), min(a + h, nx - 1) + 1):
+        ei = max(abs(i - a) - 0.5, 0.0) ** 2
+        if ei >= best2:
+            continue
+        for j in range(max(b - h, 0), min(b + h, ny - 1) + 1):
+            ej = ei + max(abs(j - b) - 0.5, 0.0) ** 2
+            if ej >= best2:
+                continue
+            for k in range(max(c - h, 0), min(c + h, nz - 1) + 1):
+                if dt2[i, j, k] == 0:
+                    e = ej + max(abs(k - c) - 0.5, 0.0) ** 2
+                    if e < best2:
+                        best2 = e
+    return math.sqrt(best2)
+
+
+@jit
+def _stair_dist(dt2, x, y, z, bound):
+    """Distance from the point (x, y, z) to the nearest solid voxel cube, searched within ``bound``."""
+    nx, ny, nz = dt2.shape
+    best2 = bound * bound
+    h = int(bound) + 1
+    a0, b0, c0 = int(math.floor(x + 0.5)), int(math.floor(y + 0.5)), int(math.floor(z + 0.5))
+    for i in range(max(a0 - h, 0), min(a0 + h, nx - 1) + 1):
+        ei = max(abs(i - x) - 0.5, 0.0) ** 2
+        if ei >= best2:
+            continue
+        for j in range(max(b0 - h, 0), min(b0 + h, ny - 1) + 1):
+            ej = ei + max(abs(j - y) - 0.5, 0.0) ** 2
+            if ej >= best2:
+                continue
+            for k in range(max(c0 - h, 0), min(c0 + h, nz - 1) + 1):
+                if dt2[i, j, k] == 0:
+                    e = ej + max(abs(k - z) - 0.5, 0.0) ** 2
+                    if e < best2:
+                        best2 = e
+    return math.sqrt(best2)
+
+
+@jit
+def _stair_section_peaks(dt2, points, half, n):
+    """Largest distance to the voxel staircase over a grid of points around each point, voxels.
+
+    ``(2 n + 1)`` points per axis at spacing ``half / n`` within ``half`` of the point, in the
+    interface plane for a face point (one half-integer coordinate: that axis is held), in 3-D for
+    a voxel point: the staircase's own inscribed radius near the point, read at sub-voxel
+    positions (so a channel whose axis falls between voxel centres reads the same at every grid).
+    """
+    m = points.shape[0]
+    out = np.zeros(m, np.float64)
+    for q in range(m):
+        x0, y0, z0 = points[q, 0], points[q, 1], points[q, 2]
+        held = -1
+        for t in range(3):
+            if points[q, t] - math.floor(points[q, t]) > 0.25:
+                held = t
+        nx, ny, nz = dt2.shape
+        a, b, c = _nearest(x0, nx), _nearest(y0, ny), _nearest(z0, nz)
+        bound = math.sqrt(max(dt2[a, b, c], 1)) + 2.0
+        best = 0.0
+        for s in range(-n, n + 1):
+            for t in range(-n, n + 1):
+                for u in range(-n, n + 1):
+                    if (held == 0 and s != 0) or (held == 1 and t != 0) or (held == 2 and u != 0):
+                        continue
+                    d = _stair_dist(dt2, x0 + s * half / n, y0 + t * half / n, z0 + u * half / n, bound)
+                    if d > best:
+                        best = d
+        out[q] = best
+    return out
+
+
+@jit
+def _face_rad(dt2, rad_tab, a, b, c, ax):
+    """Radius at voxel (a, b, c), or (``ax`` >= 0) the mean over it and its +``ax`` neighbour (a face)."""
+    v = _stair_rad(dt2, a, b, c)
+    if ax < 0:
+        return v
+    return 0.5 * (v + _stair_rad(dt2, a + (ax == 0), b + (ax == 1), c + (ax == 2)))
+
+
+@jit
+def _subvoxel_peaks(dt2, rad_tab, points):
     """Sub-voxel estimate of the distance-map peak at each point (voxel or face centre), voxels.
 
-    The distance to a wall near the centre ``c`` of an inscribed circle or ball is the cone
-    ``f(x) = r - |x - c|``; sampled on the grid, the best sample sits up to half a voxel per axis
-    from ``c`` and reads ``r - |delta|``. The central differences
-    ``g_b = (f(x + e_b) - f(x - e_b)) / 2`` of the sample's neighbours recover ``delta_b`` (exact
-    in one dimension for ``|delta_b| <= 1/2``), so ``r ~ f(x) + |g|`` with ``|g|`` capped at half
-    the diagonal of the cell searched. A point with a half-integer coordinate is a face between
-    two voxels: ``f`` there is the mean of the two, and only the two in-plane axes are searched
-    (the throat is a saddle of the distance map: a maximum across the channel, a minimum
-    along it). A voxel point (pores) searches all three axes. ``reach`` is unused padding for a
-    future wider stencil and must be 1.
+    Near the centre ``c`` of the channel's inscribed section the distance to the voxel staircase
+    falls off as ``f(x) = r - max_b |x_b - c_b|`` (its walls are flat and axis-aligned: the
+    max-norm cone; exact for squares and slits at any offset, and at any refinement of a voxel
+    image, where every wall is flat). The best grid sample sits up to half a voxel per axis from
+    ``c`` and reads ``r - max_b |delta_b|``; the central differences
+    ``g_b = (f(x + e_b) - f(x - e_b)) / 2`` recover ``|delta_b|`` (for ``|delta_b| <= 1/2``),
+    so ``r ~ f(x) + max_b |g_b|``, capped at 1/2. A point with a half-integer coordinate is a
+    face between two voxels: ``f`` there is the mean of the two, and only the two in-plane axes
+    are searched (the throat is a saddle of the distance map: a maximum across the channel, a
+    minimum along it). A voxel point (pores) searches all three axes.
 
     Parameters
     ----------
@@ -211,7 +355,6 @@ def _subvoxel_peaks(dt2, rad_tab, points, reach):
         Radius of every distance-map value (``rad_tab[0] = 0``).
     points : ndarray of float64, shape (M, 3)
         Voxel-index coordinates; at most one coordinate half-integer.
-    reach : int
 
     Returns
     -------
@@ -223,51 +366,17 @@ def _subvoxel_peaks(dt2, rad_tab, points, reach):
         base = np.zeros(3, np.int64)
         ax = -1
         for t in range(3):
-            x = points[q, t]
-            fl = math.floor(x)
+            fl = math.floor(points[q, t])
             base[t] = int(fl)
-            if x - fl > 0.25:
+            if points[q, t] - fl > 0.25:
                 ax = t
-        g2 = 0.0
-        n_axes = 0
-        f0 = 0.0
+        a, b, c = base[0], base[1], base[2]
+        g = 0.0
         for t in range(3):
             if t == ax:
                 continue
-            n_axes += 1
-            vals = np.zeros(2, np.float64)
-            for side in range(2):
-                s = 2 * side - 1
-                a, b, c = base[0], base[1], base[2]
-                if t == 0:
-                    a += s
-                elif t == 1:
-                    b += s
-                else:
-                    c += s
-                v = _rad_at(dt2, rad_tab, a, b, c)
-                if ax >= 0:
-                    a2, b2, c2 = a, b, c
-                    if ax == 0:
-                        a2 += 1
-                    elif ax == 1:
-                        b2 += 1
-                    else:
-                        c2 += 1
-                    v = 0.5 * (v + _rad_at(dt2, rad_tab, a2, b2, c2))
-                vals[side] = v
-            g = 0.5 * (vals[1] - vals[0])
-            g2 += g * g
-        f0 = _rad_at(dt2, rad_tab, base[0], base[1], base[2])
-        if ax >= 0:
-            a2, b2, c2 = base[0], base[1], base[2]
-            if ax == 0:
-                a2 += 1
-            elif ax == 1:
-                b2 += 1
-            else:
-                c2 += 1
-            f0 = 0.5 * (f0 + _rad_at(dt2, rad_tab, a2, b2, c2))
-        cap = 0.5 * math.sqrt(n_axes) * reach
-        out[q] = f0 + min(math.sqrt(g2), cap)
+            hi = _face_rad(dt2, rad_tab, a + (t == 0), b + (t == 1), c + (t == 2), ax)
+            lo = _face_rad(dt2, rad_tab, a - (t == 0), b - (t == 1), c - (t == 2), ax)
+            g = max(g, 0.5 * abs(hi - lo))
+        out[q] = _face_rad(dt2, rad_tab, a, b, c, ax) + min(g, 0.5)
     return out

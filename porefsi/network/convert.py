@@ -218,21 +218,8 @@ def from_openpnm(d: Mapping, *, voxel_size: float | None = None, shape=None, ori
     """
     if not isinstance(d, Mapping) and not hasattr(d, "keys"):
         raise InputError(f"expected a mapping of OpenPNM arrays, got {type(d).__name__}")
-    missing = [k for k in _REQUIRED if k not in d]
     cl = _conduit_lengths(d)
-    if cl is None:
-        missing.append("throat.conduit_lengths (Nt, 3)")
-    missing += [f"pore.{f}" for f in FACES if f"pore.{f}" not in d]
-    if voxel_size is None and "porefsi.voxel_size" not in d:
-        missing.append("porefsi.voxel_size (or pass voxel_size=)")
-    if shape is None and "porefsi.shape" not in d:
-        missing.append("porefsi.shape (or pass shape=)")
-    if missing:
-        raise InputError(
-            "network arrays are missing keys: " + ", ".join(missing)
-            + "; add them (an OpenPNM network needs its boundary labels, e.g. "
-            "pn['pore.xmin'] = pn.coords[:, 0] <= x0, and porefsi's sphere-cylinder conduit lengths)"
-        )
+    _check_keys(d, cl is not None, voxel_size is not None, shape is not None)
     conns = np.asarray(d["throat.conns"])
     n_t = conns.shape[0] if conns.ndim == 2 else 0
     if cl.shape != (n_t, 3):
@@ -260,6 +247,24 @@ def from_openpnm(d: Mapping, *, voxel_size: float | None = None, shape=None, ori
         throat_volume=None if tv is None else np.array(tv, dtype=float),
         **_shape_extras(d),
     )
+
+
+def _check_keys(d: Mapping, has_lengths: bool, has_voxel_size: bool, has_shape: bool) -> None:
+    """Refuse an OpenPNM mapping without the arrays :func:`from_openpnm` needs, naming them all."""
+    missing = [k for k in _REQUIRED if k not in d]
+    if not has_lengths:
+        missing.append("throat.conduit_lengths (Nt, 3)")
+    missing += [f"pore.{f}" for f in FACES if f"pore.{f}" not in d]
+    if not has_voxel_size and "porefsi.voxel_size" not in d:
+        missing.append("porefsi.voxel_size (or pass voxel_size=)")
+    if not has_shape and "porefsi.shape" not in d:
+        missing.append("porefsi.shape (or pass shape=)")
+    if missing:
+        raise InputError(
+            "network arrays are missing keys: " + ", ".join(missing)
+            + "; add them (an OpenPNM network needs its boundary labels, e.g. "
+            "pn['pore.xmin'] = pn.coords[:, 0] <= x0, and porefsi's sphere-cylinder conduit lengths)"
+        )
 
 
 def _shape_extras(d: Mapping) -> dict:

@@ -442,9 +442,10 @@ def _conduits(dt2, labels, top: _Topology, conductance) -> _Conduits:
     r_pore, conns = top.r_pore, top.conns
     r_throat = np.minimum(digital_radius(np.maximum(top.w, 1)), np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
     lt, lp = conduit_lengths(top.centre, r_pore, conns, r_throat, top.point)
-    if conductance != "paper":
-        r_pore, r_throat = subvoxel_radii(dt2, top.centre, top.point, conns, r_pore, r_throat)
-    sec = measure_sections(labels, dt2, top.centre, top.point, conns, r_throat, r_pore)
+    convention = "digital" if conductance == "paper" else "wall"
+    if convention == "wall":
+        r_pore, r_throat = subvoxel_radii(dt2, top.centre, top.point, conns, top.w)
+    sec = measure_sections(labels, dt2, top.centre, top.point, conns, r_throat, r_pore, convention)
     return _Conduits(r_pore, r_throat, lt, lp, sec)
 
 

@@ -74,44 +74,71 @@ def write_statoil(net: Network, prefix: str | os.PathLike, axis: str | int = "x"
     wet media. Water Resour. Res. 40, W07406 (pnflow's predecessor and its network format).
     """
     ax = axis_index(axis)
-    perm = _perm(ax)
     base = Path(prefix)
     if not base.parent.exists():
         raise InputError(f"cannot write Statoil files {base}_*.dat: folder {base.parent} does not exist")
-    n_p = net.n_pores
+    paths = [Path(f"{base}_{s}.dat") for s in ("link1", "link2", "node1", "node2")]
+    links, pore_G = _links(net, ax)
+    _write_links(paths[0], paths[1], links)
+    _write_node1(paths[2], net, ax, links["p1"], links["p2"])
+    with open(paths[3], "w") as f:
+        for p in range(net.n_pores):
+            f.write(f"{p + 1} {_fmt(net.pore_volume[p])} {_fmt(net.pore_radius[p])} {_fmt(pore_G[p])} 0\n")
+    return paths
+
+
+def _links(net: Network, ax: int) -> tuple[dict, np.ndarray]:
+    """Link table (internal throats, then inlet links, then outlet links; file pore indices) and pore G.
+
+    Keys ``p1, p2`` (file indices, -1 inlet / 0 outlet reservoir), ``radius, G, l1, lt, l2, volume``.
+    """
+    perm = _perm(ax)
     xyz = (net.pore_coords - net.origin)[:, perm]
     box = net.extent[perm]
     inl = np.flatnonzero(net.inlet(ax))
     out = np.flatnonzero(net.outlet(ax))
-    # Throat table: internal throats, then inlet links, then outlet links (file pore indices).
-    p1 = np.concatenate([net.throat_conns[:, 0] + 1, np.full(inl.size, -1), np.full(out.size, 0)])
-    p2 = np.concatenate([net.throat_conns[:, 1] + 1, inl + 1, out + 1])
     d_in = np.maximum(xyz[inl, 0], 0.5 * net.voxel_size)
     d_out = np.maximum(box[0] - xyz[out, 0], 0.5 * net.voxel_size)
     dbd = np.concatenate([d_in, d_out])
     bd_pores = np.concatenate([inl, out])
-    radius = np.concatenate([net.throat_radius, net.pore_radius[bd_pores]])
     shaped = net.conduit_model == "shape_factor"
     L = duct_lengths(net) if shaped else np.column_stack(
         [net.throat_pore_length[:, 0], net.throat_length, net.throat_pore_length[:, 1]])
-    l1 = np.concatenate([L[:, 0], np.zeros(bd_pores.size)])
-    l2 = np.concatenate([L[:, 2], 0.5 * dbd])
-    lt = np.concatenate([L[:, 1], 0.5 * dbd])
     tG = net.throat_shape_factor if shaped else np.full(net.n_throats, CIRCLE_SHAPE_FACTOR)
-    pG = net.pore_shape_factor if shaped else np.full(n_p, CIRCLE_SHAPE_FACTOR)
-    link_G = np.concatenate([tG, pG[bd_pores]])
-    vol = np.concatenate([net.throat_volume, np.zeros(bd_pores.size)])
-    n_all = p1.size
-    paths = [Path(f"{base}_{s}.dat") for s in ("link1", "link2", "node1", "node2")]
-    with open(paths[0], "w") as f:
-        f.write(f"{n_all}\n")
-        for t in range(n_all):
-            f.write(f"{t + 1} {p1[t]} {p2[t]} {_fmt(radius[t])} {_fmt(link_G[t])} {_fmt(l1[t] + lt[t] + l2[t])}\n")
-    with open(paths[1], "w") as f:
-        for t in range(n_all):
-            f.write(f"{t + 1} {p1[t]} {p2[t]} {_fmt(l1[t])} {_fmt(l2[t])} {_fmt(lt[t])} {_fmt(vol[t])} 0\n")
-    # Per-pore neighbour and throat lists, from both ends of every throat.
-    ends = np.concatenate([p1, p2])  # file indices
+    pG = net.pore_shape_factor if shaped else np.full(net.n_pores, CIRCLE_SHAPE_FACTOR)
+    links = {
+        "p1": np.concatenate([net.throat_conns[:, 0] + 1, np.full(inl.size, -1), np.full(out.size, 0)]),
+        "p2": np.concatenate([net.throat_conns[:, 1] + 1, inl + 1, out + 1]),
+        "radius": np.concatenate([net.throat_radius, net.pore_radius[bd_pores]]),
+        "G": np.concatenate([tG, pG[bd_pores]]),
+        "l1": np.concatenate([L[:, 0], np.zeros(bd_pores.size)]),
+        "lt": np.concatenate([L[:, 1], 0.5 * dbd]),
+        "l2": np.concatenate([L[:, 2], 0.5 * dbd]),
+        "volume": np.concatenate([net.throat_volume, np.zeros(bd_pores.size)]),
+    }
+    return links, pG
+
+
+def _write_links(path1: Path, path2: Path, k: dict) -> None:
+    """``_link1.dat`` (radius, G, total length) and ``_link2.dat`` (the three lengths, volume)."""
+    p1, p2, l1, lt, l2 = k["p1"], k["p2"], k["l1"], k["lt"], k["l2"]
+    with open(path1, "w") as f:
+        f.write(f"{p1.size}\n")
+        for t in range(p1.size):
+            f.write(f"{t + 1} {p1[t]} {p2[t]} {_fmt(k['radius'][t])} {_fmt(k['G'][t])} "
+                    f"{_fmt(l1[t] + lt[t] + l2[t])}\n")
+    with open(path2, "w") as f:
+        for t in range(p1.size):
+            f.write(f"{t + 1} {p1[t]} {p2[t]} {_fmt(l1[t])} {_fmt(l2[t])} {_fmt(lt[t])} {_fmt(k['volume'][t])} 0\n")
+
+
+def _write_node1(path: Path, net: Network, ax: int, p1: np.ndarray, p2: np.ndarray) -> None:
+    """``_node1.dat``: box, then per pore its position, neighbours, inlet/outlet flags and link ids."""
+    perm = _perm(ax)
+    xyz = (net.pore_coords - net.origin)[:, perm]
+    box = net.extent[perm]
+    n_p, n_all = net.n_pores, p1.size
+    ends = np.concatenate([p1, p2])  # file indices, from both ends of every link
     others = np.concatenate([p2, p1])
     tids = np.concatenate([np.arange(n_all), np.arange(n_all)])
     real = ends >= 1
@@ -120,7 +147,7 @@ def write_statoil(net: Network, prefix: str | os.PathLike, axis: str | int = "x"
     ends, others, tids = ends[order], others[order], tids[order]
     starts = np.searchsorted(ends, np.arange(n_p + 1))
     is_in, is_out = net.inlet(ax), net.outlet(ax)
-    with open(paths[2], "w") as f:
+    with open(path, "w") as f:
         f.write(f"{n_p} {_fmt(box[0])} {_fmt(box[1])} {_fmt(box[2])}\n")
         for p in range(n_p):
             s, e = starts[p], starts[p + 1]
@@ -129,10 +156,6 @@ def write_statoil(net: Network, prefix: str | os.PathLike, axis: str | int = "x"
             tok += [str(int(is_in[p])), str(int(is_out[p]))]
             tok += [str(int(t) + 1) for t in tids[s:e]]
             f.write(" ".join(tok) + "\n")
-    with open(paths[3], "w") as f:
-        for p in range(n_p):
-            f.write(f"{p + 1} {_fmt(net.pore_volume[p])} {_fmt(net.pore_radius[p])} {_fmt(pG[p])} 0\n")
-    return paths
 
 
 def _read_table(path: Path, skip: int, ncols: int) -> np.ndarray:
@@ -187,44 +210,18 @@ def read_statoil(
     link1 = _read_table(Path(f"{base}_link1.dat"), 1, 6)
     link2 = _read_table(Path(f"{base}_link2.dat"), 0, 7)
     node2 = _read_table(Path(f"{base}_node2.dat"), 0, 4)
-    node1_path = Path(f"{base}_node1.dat")
-    if not node1_path.is_file():
-        raise InputError(f"Statoil file {str(node1_path)!r} does not exist")
-    with open(node1_path) as f:
-        head = f.readline().split()
-        if len(head) < 4:
-            raise InputError(f"{node1_path}: first line must be 'Np Lx Ly Lz', got {' '.join(head)!r}")
-        n_p = int(head[0])
-        box = np.array([float(v) for v in head[1:4]])
-        coords = np.empty((n_p, 3))
-        flags = np.zeros((n_p, 2), dtype=bool)
-        for p in range(n_p):
-            tok = f.readline().split()
-            if len(tok) < 5:
-                raise InputError(f"{node1_path}: pore line {p + 1} is truncated")
-            coords[p] = [float(v) for v in tok[1:4]]
-            z = int(tok[4])
-            flags[p] = [tok[5 + z] == "1", tok[6 + z] == "1"]
+    box, coords, flags = _read_node1(Path(f"{base}_node1.dat"))
+    n_p = coords.shape[0]
     if node2.shape[0] != n_p or link2.shape[0] != link1.shape[0]:
         raise InputError(
             f"Statoil files {base}_*.dat disagree: node1 has {n_p} pores, node2 {node2.shape[0]}; "
             f"link1 has {link1.shape[0]} throats, link2 {link2.shape[0]}"
         )
-    shape_f = box[inv] / vs
-    shape = np.rint(shape_f).astype(int)
-    if np.any(np.abs(shape_f - shape) > 1e-6 * np.maximum(shape, 1)) or np.any(shape < 1):
-        raise InputError(
-            f"box lengths {box[inv]} m are not whole numbers of voxels of {vs} m; pass the right voxel_size"
-        )
+    shape = _voxel_shape(box[inv], vs)
     a = link1[:, 1].astype(np.int64)
     b = link1[:, 2].astype(np.int64)
     internal = (a >= 1) & (b >= 1)
-    faces = np.zeros((n_p, 6), dtype=bool)
-    for res, col in ((-1, 2 * ax), (0, 2 * ax + 1)):
-        hit = (a == res) | (b == res)
-        faces[np.maximum(a, b)[hit] - 1, col] = True
-    faces[:, 2 * ax] |= flags[:, 0]
-    faces[:, 2 * ax + 1] |= flags[:, 1]
+    faces = _faces(a, b, flags, ax)
     org = np.zeros(3) if origin is None else np.asarray(origin, dtype=float)
     return Network(
         pore_coords=coords[:, inv] + org,
@@ -241,6 +238,50 @@ def read_statoil(
         throat_volume=link2[internal, 6],
         **_statoil_shape_factors(link1[internal, 4], node2[:, 3]),
     )
+
+
+def _read_node1(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``_node1.dat``: box lengths (3,), pore positions (Np, 3) and inlet/outlet flags (Np, 2)."""
+    if not path.is_file():
+        raise InputError(f"Statoil file {str(path)!r} does not exist")
+    with open(path) as f:
+        head = f.readline().split()
+        if len(head) < 4:
+            raise InputError(f"{path}: first line must be 'Np Lx Ly Lz', got {' '.join(head)!r}")
+        n_p = int(head[0])
+        box = np.array([float(v) for v in head[1:4]])
+        coords = np.empty((n_p, 3))
+        flags = np.zeros((n_p, 2), dtype=bool)
+        for p in range(n_p):
+            tok = f.readline().split()
+            if len(tok) < 5:
+                raise InputError(f"{path}: pore line {p + 1} is truncated")
+            coords[p] = [float(v) for v in tok[1:4]]
+            z = int(tok[4])
+            flags[p] = [tok[5 + z] == "1", tok[6 + z] == "1"]
+    return box, coords, flags
+
+
+def _voxel_shape(box: np.ndarray, vs: float) -> tuple[int, int, int]:
+    """Image shape from box lengths (m) and the voxel size; refused unless whole voxels."""
+    shape_f = box / vs
+    shape = np.rint(shape_f).astype(int)
+    if np.any(np.abs(shape_f - shape) > 1e-6 * np.maximum(shape, 1)) or np.any(shape < 1):
+        raise InputError(
+            f"box lengths {box} m are not whole numbers of voxels of {vs} m; pass the right voxel_size"
+        )
+    return tuple(int(v) for v in shape)
+
+
+def _faces(a: np.ndarray, b: np.ndarray, flags: np.ndarray, ax: int) -> np.ndarray:
+    """Face labels (Np, 6): pores linked to the inlet (-1) / outlet (0) reservoir or flagged in node1."""
+    faces = np.zeros((flags.shape[0], 6), dtype=bool)
+    for res, col in ((-1, 2 * ax), (0, 2 * ax + 1)):
+        hit = (a == res) | (b == res)
+        faces[np.maximum(a, b)[hit] - 1, col] = True
+    faces[:, 2 * ax] |= flags[:, 0]
+    faces[:, 2 * ax + 1] |= flags[:, 1]
+    return faces
 
 
 def _statoil_shape_factors(throat_G: np.ndarray, pore_G: np.ndarray) -> dict:

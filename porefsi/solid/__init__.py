@@ -4,6 +4,8 @@ scikit-fem is imported only in this package (and only when a name that needs it 
 public pieces:
 
 - :func:`mesh_solid` -> :class:`MeshResult` (a :class:`SolidMesh`, removed floating solid);
+  :func:`mesh_graded`, the same with fine blocks only near a refined region (2:1 octree);
+  :func:`tet_quality` (dihedral angles, radius ratio), :func:`p1_interpolate` (a nodal field at points);
 - materials :class:`StVenantKirchhoff`, :class:`NeoHookean` (E, nu, density);
 - boundary conditions :class:`Fixed`, :class:`Roller`, :class:`Prescribed`, :class:`Affine`,
   :class:`Traction`, :func:`uniaxial_bcs`;
@@ -18,6 +20,9 @@ _EXPORTS = {
     "SolidMesh": "porefsi.solid.mesh",
     "MeshResult": "porefsi.solid.mesh",
     "mesh_solid": "porefsi.solid.mesh",
+    "mesh_graded": "porefsi.solid.graded",
+    "tet_quality": "porefsi.solid.quality",
+    "p1_interpolate": "porefsi.solid.interpolate",
     "FACET_TAGS": "porefsi.solid.mesh",
     "FACE_NAMES": "porefsi.solid.mesh",
     "PORE_WALL": "porefsi.solid.mesh",
@@ -55,6 +60,9 @@ __all__ = [
     "SolidMesh",
     "MeshResult",
     "mesh_solid",
+    "mesh_graded",
+    "tet_quality",
+    "p1_interpolate",
     "FACET_TAGS",
     "FACE_NAMES",
     "PORE_WALL",

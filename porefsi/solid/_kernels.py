@@ -110,12 +110,17 @@ def _stress_moduli(kind, lam, mu, H, F, P, A, want_A):
 
 
 @jit
-def _assemble_p1(tets, dN, vol, u, kind, lam, mu, want_K, fint, data, nptr, deg, pos):
+def _assemble_p1(geometry, u, material, want_K, fint, csr):
     """Add f_int (3 Nn,) and, if ``want_K``, the tangent into CSR ``data``; return # inverted.
 
-    ``pos[e, a, b]`` is the position of node ``tets[e, b]`` in the node-graph row of
-    ``tets[e, a]``; dof row ``3 n + i`` starts at ``9 nptr[n] + 3 i deg[n]``.
+    ``geometry = (tets, dN, vol)`` (P1 mesh and its shape-function gradients and volumes),
+    ``material = (kind, lam, mu)``, ``csr = (data, nptr, deg, pos)``: ``pos[e, a, b]`` is the
+    position of node ``tets[e, b]`` in the node-graph row of ``tets[e, a]``; dof row ``3 n + i``
+    starts at ``9 nptr[n] + 3 i deg[n]``.
     """
+    tets, dN, vol = geometry
+    kind, lam, mu = material
+    data, nptr, deg, pos = csr
     n_bad = 0
     F = np.empty((3, 3))
     Hd = np.empty((3, 3))

@@ -114,8 +114,8 @@ class P1Assembler:
         fint = np.zeros(self.n_dofs)
         data = np.zeros(self.nnz if want_K else 0)
         m = self.material
-        n_bad = _kernels._assemble_p1(self.tets, self.dN, self.vol, u, m.kind, m.lam, m.mu, want_K,
-                                      fint, data, self.nptr, self.deg, self.pos)
+        n_bad = _kernels._assemble_p1((self.tets, self.dN, self.vol), u, (int(m.kind), float(m.lam), float(m.mu)),
+                                      want_K, fint, (data, self.nptr, self.deg, self.pos))
         if n_bad:
             raise MeshError(
                 f"{n_bad} of {len(self.tets)} elements inverted (J <= 0) under the current displacement; "

@@ -17,7 +17,8 @@ from scipy import ndimage
 from porefsi.errors import InputError, MeshError
 from porefsi.image.voxel_image import VoxelImage, axis_index
 
-__all__ = ["SolidMesh", "MeshResult", "mesh_solid", "mesh_size", "FACET_TAGS", "FACE_NAMES", "PORE_WALL", "tet_volumes"]
+__all__ = ["SolidMesh", "MeshResult", "mesh_solid", "mesh_size", "FACET_TAGS", "FACE_NAMES", "PORE_WALL", "tet_volumes",
+           "SolidBlocks", "solid_blocks", "block_points", "image_box"]
 
 #: Box faces in the order of their tag codes 0..5.
 FACE_NAMES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
@@ -204,6 +205,9 @@ class MeshResult:
         Solid volume fraction of the coarsened image (before removal).
     n_components_removed : int
         Number of face-connected solid components dropped.
+    leaf_counts : dict or None
+        Graded meshes (``porefsi.solid.graded``): number of leaf cubes of each edge length
+        in voxels, ``{coarsen: n, 2 coarsen: n, ...}``; None for a uniform mesh.
     """
 
     mesh: SolidMesh
@@ -211,6 +215,7 @@ class MeshResult:
     coarsen: int
     solid_fraction_coarse: float
     n_components_removed: int
+    leaf_counts: dict | None = None
 
 
 def _coarsen(solid: np.ndarray, c: int) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -343,6 +348,71 @@ def _require_resolved(image: VoxelImage, fine: np.ndarray, solid: np.ndarray, ce
                          f"the pores and be too stiff; {fix}, e.g. {max(1, c // 2)}")
 
 
+def _check_mesh_args(image, coarsen, threshold, keep) -> None:
+    """Raise :class:`InputError` naming a bad argument of :func:`mesh_solid` / ``mesh_graded``."""
+    if not isinstance(image, VoxelImage):
+        raise InputError(f"image must be a VoxelImage, got {type(image).__name__}")
+    if isinstance(coarsen, bool) or not isinstance(coarsen, (int, np.integer)) or coarsen < 1:
+        raise InputError(f"coarsen must be an integer >= 1, got {coarsen!r}")
+    if not (0.0 < float(threshold) <= 1.0):
+        raise InputError(f"threshold must be in (0, 1], got {threshold!r}; 0.5 is the usual choice")
+    if keep not in ("supported", "largest"):
+        raise InputError(f"keep must be 'supported' or 'largest', got {keep!r}")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SolidBlocks:
+    """The block grid a mesh is built on (what :func:`solid_blocks` returns).
+
+    Attributes
+    ----------
+    mask : ndarray of bool, shape (bx, by, bz)
+        Kept solid blocks (solid enough and connected to the supports).
+    lines : list of 3 ndarray of int
+        Voxel index of every block boundary per axis (``bx + 1`` entries along x, ...).
+    total, kept : float
+        Solid volume (in voxels) of the blocks before and after dropping floating components.
+    fraction_coarse : float
+        Solid volume fraction of the block grid before the removal.
+    n_removed : int
+        Face-connected solid components dropped.
+    """
+
+    mask: np.ndarray
+    lines: list
+    total: float
+    kept: float
+    fraction_coarse: float
+    n_removed: int
+
+
+def solid_blocks(image: VoxelImage, coarsen: int, threshold: float, keep: str, support_axis) -> SolidBlocks:
+    """Block-coarsen the solid of ``image`` and keep the supported components (see :func:`mesh_solid`)."""
+    _check_mesh_args(image, coarsen, threshold, keep)
+    ax = None if support_axis is None else axis_index(support_axis)
+    fine = image.phases == 0
+    if not fine.any():
+        raise MeshError("the image has no solid voxels (phase 0); there is nothing to mesh")
+    fraction, lines = _coarsen(fine, int(coarsen))
+    solid = fraction >= float(threshold)
+    sizes = [np.diff(g).astype(float) for g in lines]
+    cell_vol = sizes[0][:, None, None] * sizes[1][None, :, None] * sizes[2][None, None, :]
+    total = float((cell_vol * solid).sum())
+    if total == 0:
+        shape = "x".join(str(n) for n in image.phases.shape)
+        raise MeshError(
+            f"no solid left after coarsening by {coarsen}: in the {shape}-voxel image (solid fraction "
+            f"{float(fine.mean()):.3g}) no {coarsen}^3 block is at least {threshold:g} solid (the most solid "
+            f"block is {float(fraction.max()):.3g}), so every block became pore; the image is too small or too "
+            f"porous for this coarsening: use a smaller coarsen (--coarsen 1 meshes every voxel) or a lower "
+            "threshold"
+        )
+    _require_resolved(image, fine, solid, cell_vol, int(coarsen))
+    mask, n_removed = _keep_components(solid, keep, ax)
+    kept = float((cell_vol * mask).sum())
+    return SolidBlocks(mask, lines, total, kept, total / float(cell_vol.sum()), n_removed)
+
+
 def mesh_solid(
     image: VoxelImage,
     *,
@@ -383,47 +453,27 @@ def mesh_solid(
     MeshError
         No solid, or no solid connected to the supports.
     """
-    if not isinstance(image, VoxelImage):
-        raise InputError(f"image must be a VoxelImage, got {type(image).__name__}")
-    if isinstance(coarsen, bool) or not isinstance(coarsen, (int, np.integer)) or coarsen < 1:
-        raise InputError(f"coarsen must be an integer >= 1, got {coarsen!r}")
-    if not (0.0 < float(threshold) <= 1.0):
-        raise InputError(f"threshold must be in (0, 1], got {threshold!r}; 0.5 is the usual choice")
-    if keep not in ("supported", "largest"):
-        raise InputError(f"keep must be 'supported' or 'largest', got {keep!r}")
-    ax = None if support_axis is None else axis_index(support_axis)
-    fine = image.phases == 0
-    if not fine.any():
-        raise MeshError("the image has no solid voxels (phase 0); there is nothing to mesh")
-    fraction, lines = _coarsen(fine, int(coarsen))
-    solid = fraction >= float(threshold)
-    sizes = [np.diff(g).astype(float) for g in lines]
-    cell_vol = sizes[0][:, None, None] * sizes[1][None, :, None] * sizes[2][None, None, :]
-    total = float((cell_vol * solid).sum())
-    if total == 0:
-        shape = "x".join(str(n) for n in image.phases.shape)
-        raise MeshError(
-            f"no solid left after coarsening by {coarsen}: in the {shape}-voxel image (solid fraction "
-            f"{float(fine.mean()):.3g}) no {coarsen}^3 block is at least {threshold:g} solid (the most solid "
-            f"block is {float(fraction.max()):.3g}), so every block became pore; the image is too small or too "
-            f"porous for this coarsening: use a smaller coarsen (--coarsen 1 meshes every voxel) or a lower "
-            "threshold"
-        )
-    _require_resolved(image, fine, solid, cell_vol, int(coarsen))
-    mask, n_removed = _keep_components(solid, keep, ax)
-    kept = float((cell_vol * mask).sum())
-    ijk, tets, facets, tags = mesh_voxels(mask)
-    h = image.voxel_size
-    pts = np.stack([lines[d][ijk[:, d]] for d in range(3)], axis=1) * h + image.origin
-    box = np.stack([image.origin, image.origin + np.asarray(image.phases.shape) * h])
-    mesh = SolidMesh(points=pts, tets=tets, facets=facets, facet_tags=tags, box=box)
+    blocks = solid_blocks(image, coarsen, threshold, keep, support_axis)
+    ijk, tets, facets, tags = mesh_voxels(blocks.mask)
+    pts = block_points(image, blocks.lines, ijk)
+    mesh = SolidMesh(points=pts, tets=tets, facets=facets, facet_tags=tags, box=image_box(image))
     return MeshResult(
         mesh=mesh,
-        removed_solid_fraction=(total - kept) / total,
+        removed_solid_fraction=(blocks.total - blocks.kept) / blocks.total,
         coarsen=int(coarsen),
-        solid_fraction_coarse=total / float(cell_vol.sum()),
-        n_components_removed=n_removed,
+        solid_fraction_coarse=blocks.fraction_coarse,
+        n_components_removed=blocks.n_removed,
     )
+
+
+def block_points(image: VoxelImage, lines, ijk: np.ndarray) -> np.ndarray:
+    """Coordinates (m), shape (Nn, 3), of block-grid corners ``ijk`` (Nn, 3) of ``image``'s block ``lines``."""
+    return np.stack([lines[d][ijk[:, d]] for d in range(3)], axis=1) * image.voxel_size + image.origin
+
+
+def image_box(image: VoxelImage) -> np.ndarray:
+    """The image box ``[[xmin, ymin, zmin], [xmax, ymax, zmax]]``, m, shape (2, 3)."""
+    return np.stack([image.origin, image.origin + np.asarray(image.phases.shape) * image.voxel_size])
 
 
 def mesh_size(image: VoxelImage, *, coarsen: int = 1, threshold: float = 0.5) -> tuple[int, int]:

@@ -28,15 +28,16 @@ from porefsi.sweep._progress import SweepProgress
 from porefsi.sweep.member import one_line, read_member_file, run_member
 from porefsi.sweep.spec import Sweep
 
-__all__ = ["run_sweep", "SweepResult", "DESIGN_FILE", "TABLE_FILE", "FIGURE_FILE", "default_workers"]
+__all__ = ["run_sweep", "Cluster", "SweepResult", "DESIGN_FILE", "TABLE_FILE", "FIGURE_FILE", "default_workers"]
 
 DESIGN_FILE = "sweep.json"
 TABLE_FILE = "sweep.csv"
 FIGURE_FILE = "figures/sweep.png"
 #: Seconds to wait for a scheduler given by address or file before giving up.
 CONNECT_TIMEOUT = 20
-#: Environment of LocalCluster workers: one BLAS / OpenMP thread per worker process.
-WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "MPLBACKEND": "Agg",
+#: Environment of LocalCluster workers: one BLAS / OpenMP / numba thread per worker process.
+WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1",
+              "MPLBACKEND": "Agg",
               "PYVISTA_OFF_SCREEN": "true"}
 
 
@@ -53,6 +54,54 @@ class SweepResult:
     figure: Path | None
 
 
+@dataclasses.dataclass(frozen=True)
+class Cluster:
+    """Where a sweep's members run (checked on construction).
+
+    Parameters
+    ----------
+    serial : bool
+        One after the other in this process, without Dask (the reference).
+    scheduler, scheduler_file : str, optional
+        Address (``tcp://host:8786``) or scheduler file of a running Dask cluster; default a
+        LocalCluster of ``n_workers`` processes (default :func:`default_workers`), one thread each.
+    n_workers : int, optional
+        Worker processes of the LocalCluster.
+    retries : int
+        Times a member is resubmitted after losing its worker (it resumes from its checkpoint);
+        a member that raises is not retried (it is recorded as failed).
+
+    Raises
+    ------
+    InputError
+        Contradictory or out-of-range settings.
+    """
+
+    serial: bool = False
+    scheduler: str | None = None
+    scheduler_file: str | Path | None = None
+    n_workers: int | None = None
+    retries: int = 2
+
+    def __post_init__(self) -> None:
+        if self.retries < 0:
+            raise InputError(f"retries must be >= 0, got {self.retries}")
+        if self.n_workers is not None and self.n_workers < 1:
+            raise InputError(f"workers must be >= 1, got {self.n_workers}")
+        if self.serial and (self.remote or self.n_workers):
+            raise InputError("--serial runs in this process: drop --scheduler, --scheduler-file and --workers")
+        if self.scheduler and self.scheduler_file:
+            raise InputError("give --scheduler ADDRESS or --scheduler-file PATH, not both")
+        if self.n_workers is not None and self.remote:
+            raise InputError("--workers sizes the LocalCluster; an existing cluster has its own workers: "
+                             "drop --workers")
+
+    @property
+    def remote(self) -> bool:
+        """True when the members run on an existing cluster (address or scheduler file)."""
+        return bool(self.scheduler or self.scheduler_file)
+
+
 def default_workers() -> int:
     """Worker processes of the default LocalCluster: the CPUs this process may use."""
     try:
@@ -61,10 +110,8 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def run_sweep(sweep: Sweep, out: str | Path, *, serial: bool = False, scheduler: str | None = None,
-              scheduler_file: str | Path | None = None, n_workers: int | None = None, overwrite: bool = False,
-              retries: int = 2, force: bool = False, figures: bool | None = None,
-              progress: bool | None = None) -> SweepResult:
+def run_sweep(sweep: Sweep, out: str | Path, cluster: Cluster | None = None, *, overwrite: bool = False,
+              force: bool = False, figures: bool | None = None, progress: bool | None = None) -> SweepResult:
     """Run every member of ``sweep`` into ``out/<member>/``; write ``sweep.csv`` and the figure.
 
     Parameters
@@ -73,16 +120,10 @@ def run_sweep(sweep: Sweep, out: str | Path, *, serial: bool = False, scheduler:
         From :func:`porefsi.sweep.load_sweep`.
     out : path
         The sweep's folder.
-    serial : bool
-        Run the members one after the other in this process, without Dask (the reference).
-    scheduler, scheduler_file : str, optional
-        Address (``tcp://host:8786``) or scheduler file of a running Dask cluster; default a
-        LocalCluster of ``n_workers`` processes (default :func:`default_workers`), one thread each.
+    cluster : Cluster, optional
+        Where the members run; default ``Cluster()``, a LocalCluster sized to the machine.
     overwrite : bool
         Start every member afresh (also in a folder that holds another sweep).
-    retries : int
-        Times a member is resubmitted after losing its worker (it resumes from its checkpoint);
-        a member that raises is not retried (it is recorded as failed).
     force, figures : passed to :func:`porefsi.case.run.run_case` (``figures`` overrides
         ``output.figures`` of the members; the sweep's own figure is drawn unless False).
     progress : bool, optional
@@ -97,17 +138,16 @@ def run_sweep(sweep: Sweep, out: str | Path, *, serial: bool = False, scheduler:
         Ctrl-C / SIGTERM: the running members are stopped (their checkpoints stay); running the
         same command again continues the sweep.
     """
-    if retries < 0:
-        raise InputError(f"retries must be >= 0, got {retries}")
+    cluster = Cluster() if cluster is None else cluster
     out = rundir.check_output_dir(out)
     _check_folder(out, sweep, overwrite)
     records = [None if overwrite else _completed_record(out, m) for m in sweep.members]
     skipped = sum(r is not None for r in records)
     tasks = [_task(out, m, overwrite, force, figures) for m, r in zip(sweep.members, records, strict=True)
              if r is None]
-    if not tasks and not (serial or scheduler or scheduler_file):  # nothing to run: no local cluster
-        serial, n_workers = True, None
-    with _executor(serial, scheduler, scheduler_file, n_workers) as client, \
+    if not tasks and not cluster.remote:  # nothing to run: start no local cluster
+        cluster = Cluster(serial=True)
+    with _executor(cluster) as client, \
             rundir.lock(out, command=" ".join(["porefsi", *sys.argv[1:]])), rundir.output_errors(out):
         results.write_json(out / DESIGN_FILE, {"format": 1, "source": sweep.source, "mode": sweep.mode,
                                                "keys": list(sweep.keys), "smoke": sweep.smoke,
@@ -124,7 +164,7 @@ def run_sweep(sweep: Sweep, out: str | Path, *, serial: bool = False, scheduler:
                 for t in tasks:
                     done(run_member(t))
             else:
-                _run_dask(client, tasks, retries, done)
+                _run_dask(client, tasks, cluster.retries, done)
         except KeyboardInterrupt as exc:
             raise KeyboardInterrupt(f"{exc or 'stopped'}; every member keeps its last checkpoint: run the same "
                                     "command again to continue the sweep") from None
@@ -181,24 +221,18 @@ def _check_folder(out: Path, sweep: Sweep, overwrite: bool) -> None:
 
 
 @contextlib.contextmanager
-def _executor(serial: bool, scheduler: str | None, scheduler_file, n_workers: int | None):
+def _executor(cluster: Cluster):
     """A dask Client (LocalCluster, address or scheduler file) for the block, or None (serial)."""
-    if serial:
-        if scheduler or scheduler_file or n_workers:
-            raise InputError("--serial runs in this process: drop --scheduler, --scheduler-file and --workers")
+    if cluster.serial:
         yield None
         return
-    if scheduler and scheduler_file:
-        raise InputError("give --scheduler ADDRESS or --scheduler-file PATH, not both")
-    if n_workers is not None and (scheduler or scheduler_file):
-        raise InputError("--workers sizes the LocalCluster; an existing cluster has its own workers: drop --workers")
     from distributed import Client, LocalCluster
 
-    if scheduler or scheduler_file:
-        with _connect(Client, scheduler, scheduler_file) as client:
+    if cluster.remote:
+        with _connect(Client, cluster.scheduler, cluster.scheduler_file) as client:
             yield client
         return
-    with LocalCluster(n_workers=n_workers or default_workers(), threads_per_worker=1, processes=True,
+    with LocalCluster(n_workers=cluster.n_workers or default_workers(), threads_per_worker=1, processes=True,
                       dashboard_address=None, env=WORKER_ENV) as cluster, Client(cluster) as client:
         yield client
 

@@ -56,10 +56,24 @@ def sections(labels, conns):
     return area, faces, wall
 
 
+def stair_radius(dt2, idx):
+    """Distance from voxel ``idx``'s centre to the nearest solid voxel cube (``dt2 == 0``), by
+    brute force over every solid voxel; 0 in solid; the distance map's own bound
+    ``sqrt(dt2) - 1/2`` when no solid voxel lies in the image (outside is not solid)."""
+    if dt2[idx] == 0:
+        return 0.0
+    solid = np.argwhere(dt2 == 0)
+    if solid.size == 0:
+        return math.sqrt(dt2[idx]) - 0.5
+    gap = np.maximum(np.abs(solid - np.asarray(idx)) - 0.5, 0.0)
+    return float(np.sqrt((gap**2).sum(axis=1)).min())
+
+
 def ridge_radius(dt2, radius_of, idx, u):
-    """Radius at voxel ``idx`` plus the length of the across-line part of its central-difference
-    gradient (voxels outside the image read 0), capped at sqrt(2)/2; 0 in solid."""
-    f = radius_of(int(dt2[idx]))
+    """Staircase radius at voxel ``idx`` (:func:`stair_radius`) plus the largest component of the
+    across-line part of the central-difference gradient of ``radius_of`` (voxels outside the image
+    read 0), capped at 1/2; 0 in solid."""
+    f = stair_radius(dt2, idx)
     if f == 0:
         return 0.0
 
@@ -75,7 +89,36 @@ def ridge_radius(dt2, radius_of, idx, u):
         g[k] = (at(tuple(hi)) - at(tuple(lo))) / 2
     u = np.asarray(u, dtype=float)
     across = g - np.dot(g, u) * u
-    return f + min(float(np.linalg.norm(across)), math.sqrt(2) / 2)
+    return f + min(float(np.max(np.abs(across))), 0.5)
+
+
+def section_radius(dt2, radius_of, x, u):
+    """Largest ridge radius over the voxels nearest to the points x + s e1 + t e2 (integer s, t,
+    s^2 + t^2 <= rho^2, rho the radius at the voxel nearest to x; e1, e2 an orthonormal pair
+    normal to u, e1 from the x axis, or the y axis when u is within ~25 degrees of x); 0 in solid.
+    Ties keep the first voxel met (s, then t, ascending; x's own voxel before all)."""
+    def nearest(p):
+        return tuple(min(max(math.floor(p[k] + 0.5), 0), dt2.shape[k] - 1) for k in range(3))
+
+    u = np.asarray(u, dtype=float)
+    here = nearest(x)
+    rho = radius_of(int(dt2[here]))
+    if rho == 0:
+        return 0.0
+    a = np.array([1.0, 0, 0]) if abs(u[0]) < 0.9 else np.array([0, 1.0, 0])
+    e1 = a - np.dot(a, u) * u
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    best, where = int(dt2[here]), here
+    h = int(rho)
+    for s in range(-h, h + 1):
+        for t in range(-h, h + 1):
+            if s * s + t * t > rho * rho:
+                continue
+            v = nearest([x[k] + s * e1[k] + t * e2[k] for k in range(3)])
+            if int(dt2[v]) > best:
+                best, where = int(dt2[v]), v
+    return ridge_radius(dt2, radius_of, where, u)
 
 
 def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore, step):
@@ -83,8 +126,8 @@ def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore,
 
     ``radius_of(v)`` gives the radius of a distance-map value. Along the straight segment from a
     pore centre to the throat point, midpoint samples of ``ceil(d / step)`` equal parts take the
-    ridge radius (:func:`ridge_radius`) of the nearest voxel (halves rounded up, indices clipped
-    to the image), clamped to [r_t, R]; the throat length solves
+    section radius (:func:`section_radius`) at the sample, clamped to [r_t, R]; the throat
+    length solves
     ``L_t / r_t^4 + (d - L_t) / R^4 = sum(dx / r^4)``.
     """
     n_t = len(conns)
@@ -104,8 +147,7 @@ def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore,
             total = 0.0
             for q in range(m):
                 x = [centre[p][k] + (q + 0.5) / m * vec[k] for k in range(3)]
-                idx = tuple(min(max(math.floor(x[k] + 0.5), 0), dt2.shape[k] - 1) for k in range(3))
-                r = min(max(ridge_radius(dt2, radius_of, idx, [v / d for v in vec]), rt), R)
+                r = min(max(section_radius(dt2, radius_of, x, [v / d for v in vec]), rt), R)
                 total += (d / m) / r**4
             lt = (total - d / R**4) / (1 / rt**4 - 1 / R**4)
             lt_out[t, s] = min(max(lt, 0.0), d)

@@ -1,0 +1,105 @@
+"""Benchmark: the adaptive drainage scheme on networks the exact scheme cannot finish (issue 16 targets).
+
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/bench_drainage_large.py --net lat100k [--ca paper]
+[--opt tie_tolerance=1 local_solves=0] [--max-cpu 900] [--image ../shared/data/berea_icl_400.npz]
+[--cache DIR]``.
+
+Networks as in ``bench_drainage_scheme.py`` (``lat10k`` ... ``lat100k``, ``berea``, ``berea2`` =
+the 400³ Berea network mirror-tiled 2x2x2, extracted once and cached). Drains with the adaptive
+scheme to breakthrough (``simulate_drainage(..., stop_at_breakthrough=True)``), printing a
+progress line every 30 s (fills, certified fills, solves, Sw, CPU seconds), then one result
+line: CPU seconds, counters, breakthrough time and Sw, and, as the only truth that runs at this
+size, the quasi-static limit on the same network (invasion percolation with trapping): Spearman
+rank correlation of the invasion order, pores invaded by one only, the breakthrough volume.
+Where the exact scheme can run, ``bench_drainage_scheme.py`` compares against it. The load
+average is printed (a shared 2-core machine: CPU seconds are the comparable number).
+"""
+
+import argparse
+import json
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))  # run from a checkout
+sys.path.insert(0, str(HERE))
+
+from bench_drainage_scheme import _network, _number, _rate  # noqa: E402
+from drainage_compare import _load  # noqa: E402
+
+from porefsi.flow.drainage import DrainageOptions, RunControl, simulate_drainage  # noqa: E402
+from porefsi.flow.fluids import Fluids  # noqa: E402
+from porefsi.flow.invasion import invasion_percolation  # noqa: E402
+
+
+def _spearman(a, b):
+    from scipy.stats import spearmanr
+
+    return float(spearmanr(a, b)[0])
+
+
+def main(argv=None):
+    """Drain one network with the adaptive scheme to breakthrough; print progress and the result."""
+    p = argparse.ArgumentParser()
+    p.add_argument("--net", default="lat100k")
+    p.add_argument("--ca", default="paper")
+    p.add_argument("--opt", nargs="*", default=[], metavar="KEY=VALUE")
+    p.add_argument("--max-cpu", type=float, default=900.0, help="stop (no result) after this many CPU seconds")
+    p.add_argument("--image")
+    p.add_argument("--cache", default=str(HERE / "_drainage_scheme"))
+    p.add_argument("--json", help="append the result record to this file (JSON lines)")
+    args = p.parse_args(argv)
+    cache = pathlib.Path(args.cache)
+    cache.mkdir(parents=True, exist_ok=True)
+    fl = Fluids()
+    net = _network(args.net, args.image, cache)
+    rate = _rate(args.ca, net, fl)
+    ca = fl.capillary_number(rate, float(np.prod(net.extent[1:])))
+    opts = {k: _number(v) for k, v in (o.split("=", 1) for o in args.opt)}
+    options = DrainageOptions(rate=rate, t_end=1e12, scheme="adaptive", skip_solves="on", **opts)
+    c0 = time.process_time()
+
+    class TooLongError(Exception):
+        pass
+
+    def report(sim, seconds):
+        c = sim.counters
+        cpu = time.process_time() - c0
+        print(f"  t = {sim.t:.4g} s fills {c['n_fills']} certified {c['n_certified_fills']} solves {c['n_solves']} "
+              f"local {c['n_local_solves']} setups {c['n_solver_setups']} cpu {cpu:.0f} s load {_load()}", flush=True)
+        if cpu > args.max_cpu:
+            raise TooLongError(f"stopped after {cpu:.0f} CPU s")
+
+    print(f"{args.net}: {net.n_pores} pores, Ca = {ca:.2e}, options {opts}, load {_load()}", flush=True)
+    try:
+        res = simulate_drainage(net, fl, options, stop_at_breakthrough=True,
+                                run=RunControl(report=report, report_every=30.0))
+    except TooLongError as exc:
+        print(f"{args.net}: NOT FINISHED ({exc})", flush=True)
+        return 1
+    cpu = time.process_time() - c0
+    ip = invasion_percolation(net, fl, axis="x", stop_at_breakthrough=True)
+    t = res.invasion_time
+    a, b = np.isfinite(t), ip.pore_sequence >= 0
+    both = a & b
+    rec = dict(net=args.net, n_pores=net.n_pores, ca=ca, options=opts, cpu_s=cpu, counters=res.counters,
+               breakthrough_time=res.breakthrough_time, breakthrough_sw=res.breakthrough_sw,
+               spearman_vs_ip=_spearman(t[both], ip.pore_sequence[both]), only_dpn=int((a & ~b).sum()),
+               only_ip=int((b & ~a).sum()), ip_breakthrough_fills=int(ip.breakthrough_step + 1),
+               ip_breakthrough_time=float(net.pore_volume[b].sum() / rate), load=_load())
+    print(f"{args.net}: cpu {cpu:.1f} s, {res.counters['n_fills']} fills ({res.counters['n_certified_fills']} "
+          f"certified), {res.counters['n_solves']} solves, breakthrough t = {res.breakthrough_time:.5g} s Sw = "
+          f"{res.breakthrough_sw:.4f}; invasion percolation: t_bt = {rec['ip_breakthrough_time']:.5g} s, Spearman "
+          f"{rec['spearman_vs_ip']:.4f}, only DPN / IP {rec['only_dpn']} / {rec['only_ip']}; load {_load()}",
+          flush=True)
+    if args.json:
+        with open(args.json, "a") as f:
+            f.write(json.dumps(rec) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
