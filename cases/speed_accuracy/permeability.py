@@ -227,8 +227,8 @@ def plot(studies: list[dict], path: Path) -> None:
         a.legend(fontsize=7, loc="best")
     ax.set_ylabel("|k mean / truth - 1|  (filled: above the truth, open: below)")
     bx.set_ylabel("k, mean of x, y, z (mD)")
-    ax.set_title("error: network (square shape_factor, triangle paper), voxel Stokes /coarsening (circle "
-                 "channel closure, diamond ghost)", fontsize=9)
+    ax.set_title("error: network (square shape_factor, triangle paper);\nvoxel Stokes /coarsening (circle: "
+                 "channel wall closure, diamond: ghost)", fontsize=9)
     bx.set_title("permeability; dashed: published DNS, dotted: finest voxel solve (a convergence check)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -43,17 +43,6 @@ class SolidOptions:
 
     coarsen: int = option(5, "block-coarsening factor of the image before meshing (5: the paper's mesh size, "
                           "~57k tets on the 120³ sample)", limits=Limits(1))
-    mesh: str = option("uniform", "uniform = every block coarsen voxels across; graded = blocks of coarsen voxels "
-                       "near the refined pores, leaves of 2, 4, ... x coarsen (up to coarsen_max) away from them, "
-                       "2:1 balanced and conforming (docs/solid.md)", choices=("uniform", "graded"))
-    coarsen_max: int = option(16, "graded mesh: largest leaf edge (voxels; leaves are coarsen x a power of 2)",
-                              limits=Limits(1))
-    grading: float = option(1.0, "graded mesh: a leaf of edge s blocks lies more than grading x s blocks from the "
-                            "refined pores (smaller: coarser sooner)", limits=_POSITIVE)
-    refine: str = option("walls", "graded mesh: where it stays at coarsen: walls = every pore wall (coarse only "
-                         "inside grains); invaded = the pores invasion percolation fills with twice the injected "
-                         "volume (drainage.rate x drainage.t_end), where the fluid load sits",
-                         choices=("walls", "invaded"))
     order: int = option(1, "finite-element order (1 = P1, 2 = P2)", choices=(1, 2))
     material: str = option("svk", "hyperelastic law", choices=("svk", "neo-hookean"))
     E: float = option(Material.E, "Young's modulus (paper: 20 GPa)", limits=Material.LIMITS["E"], unit="Pa")
@@ -79,6 +68,17 @@ class SolidOptions:
     response_tol: float = option(1e-3, "linear/auto: tolerance on the estimated relative displacement error of "
                                  "the linearisation (one Newton correction / max |u|)",
                                  limits=Limits(0.0, 1.0, lo_open=True, hi_open=True))
+    mesh: str = option("uniform", "uniform = every block coarsen voxels across; graded = blocks of coarsen voxels "
+                       "near the refined pores, leaves of 2, 4, ... x coarsen (up to coarsen_max) away from them, "
+                       "2:1 balanced and conforming (docs/solid.md)", choices=("uniform", "graded"))
+    coarsen_max: int = option(16, "graded mesh: largest leaf edge (voxels; leaves are coarsen x a power of 2)",
+                              limits=Limits(1))
+    grading: float = option(1.0, "graded mesh: a leaf of edge s blocks lies more than grading x s blocks from the "
+                            "refined pores (smaller: coarser sooner)", limits=_POSITIVE)
+    refine: str = option("walls", "graded mesh: where it stays at coarsen: walls = every pore wall (coarse only "
+                         "inside grains); invaded = the pores invasion percolation fills with twice the injected "
+                         "volume (drainage.rate x drainage.t_end), where the fluid load sits",
+                         choices=("walls", "invaded"))
 
     def __post_init__(self):
         validate(self, "solid")

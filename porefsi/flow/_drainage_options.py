@@ -108,7 +108,7 @@ class DrainageOptions:
             out.update({k: getattr(self, k) for k in _ADAPTIVE_KNOBS})
             if self.solver == "auto" and n_pores > ADAPTIVE_SPLIT_ABOVE:
                 out["solver"] = "split"
-            if not ca <= TIE_MAX_CA:
+            if not ca <= TIE_MAX_CA * (1 + 1e-9):  # (a rate made from Ca = 1e-6 may round above it)
                 out["tie_tolerance"] = 0.0
         return out
 
