@@ -136,8 +136,10 @@ class FidelityConfig:
                                  optional=True)
     budget_s: float | None = _f(None, "auto: CPU-time budget of the run (one thread), the most accurate "
                                 "setting expected to fit", limits=_POSITIVE, unit="s", optional=True)
-    keep: list = _f([], "keys the preset leaves as the case sets them (filled from the case file's own keys; "
-                    f"any of {', '.join(FIDELITY_KEYS)})", items="keys")
+    keep: list = dataclasses.field(  # bookkeeping, not a setting: equal cases may differ in it
+        default_factory=list, compare=False, metadata=_f([], "keys the preset leaves as the case sets them (filled "
+                                                         "from the case file's own keys; written only with a preset; "
+                                                         f"any of {', '.join(FIDELITY_KEYS)})", items="keys").metadata)
 
 
 _SECTIONS: dict[str, type] = {
@@ -183,7 +185,9 @@ class Case:
             else:
                 d[sec] = dataclasses.asdict(val)
         given = _fidelity_keys({s: v for s, v in sections.items() if isinstance(v, dict) and s != "fidelity"})
-        d["fidelity"]["keep"] = sorted(set(d["fidelity"]["keep"]) | set(given))
+        fid = sections.get("fidelity")
+        kept = fid["keep"] if isinstance(fid, dict) and "keep" in fid else self.fidelity.keep
+        d["fidelity"]["keep"] = sorted(set(kept) | set(given))
         return case_from_dict(d, name=d.get("name", self.name))
 
 
@@ -306,6 +310,8 @@ def case_to_dict(case: Case) -> dict:
     out: dict[str, Any] = {"name": case.name}
     for sec in _SECTIONS:
         out[sec] = dataclasses.asdict(getattr(case, sec))
+    if case.fidelity.preset == "none":  # without a preset the kept keys change nothing: not written
+        del out["fidelity"]["keep"]
     return out
 
 
