@@ -213,6 +213,23 @@ def test_explicit_keys_win_over_the_preset(tmp_path):
     assert set(choice.settings) == set(FIDELITY_KEYS)
 
 
+def test_a_sweeps_varied_keys_win_over_the_base_preset():
+    from porefsi.sweep import sweep_from_dict
+
+    sw = sweep_from_dict({"base": {"fidelity": {"preset": "fast"}},
+                          "vary": {"solid.coarsen": [4, 5], "drainage.rate": [1e-13, 2e-13], "mode": "zip"}})
+    for m, c in zip(sw.members, (4, 5), strict=True):
+        assert "solid.coarsen" in m.case.fidelity.keep and "drainage.rate" not in m.case.fidelity.keep
+        out, choice = resolve_fidelity(m.case, image=_tiny())
+        assert out.solid.coarsen == c and "solid.coarsen" in choice.kept
+    # keys the sweep does not set follow the base's preset (the base's own keys alone are kept)
+    sw = sweep_from_dict({"base": {"fidelity": "fast", "interface": {"method": "hull"}},
+                          "vary": {"drainage.rate": [1e-13]}})
+    out, _ = resolve_fidelity(sw.members[0].case, image=_tiny())
+    assert sw.members[0].case.fidelity.keep == ["interface.method"] and out.interface.method == "hull"
+    assert out.solid.coarsen == PRESETS["fast"]["solid.coarsen"] != Case().solid.coarsen
+
+
 def test_preset_settings_and_idempotence():
     case = Case().replace(fidelity={"preset": "paper", "keep": []})
     out, choice = resolve_fidelity(case, image=_tiny())

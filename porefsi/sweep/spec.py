@@ -21,7 +21,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from porefsi.case.config import Case, case_from_dict, case_to_dict, load_case, smoke_case
+from porefsi.case.config import FIDELITY_KEYS, Case, case_from_dict, case_to_dict, load_case, smoke_case
 from porefsi.errors import ConfigError
 
 __all__ = ["Member", "Sweep", "PlotSpec", "load_sweep", "sweep_from_dict", "member_name", "SUMMARY_NUMBERS"]
@@ -149,7 +149,12 @@ def _base_case(tab: dict, base_dir: Path, where: str) -> tuple[Case, bool]:
         case = load_case(cp if cp.is_absolute() else base_dir / cp)
     else:
         case = Case()
+    if isinstance(inline.get("fidelity"), str):  # fidelity = "auto" is short for the section
+        inline["fidelity"] = {"preset": inline["fidelity"]}
     d = case_to_dict(case)
+    # a preset leaves alone the keys the case file or the inline table set, and only those
+    own = {f"{sec}.{k}" for sec, val in inline.items() if isinstance(val, dict) for k in val} & set(FIDELITY_KEYS)
+    d["fidelity"]["keep"] = sorted(set(case.fidelity.keep) | own)
     for sec, val in inline.items():
         if sec == "name":
             d["name"] = val
@@ -228,6 +233,7 @@ def _members(base: Case, smoke: bool, keys: list, rows: list, labels: list | Non
             if sec not in d or not isinstance(d[sec], dict):
                 case_from_dict({sec: {}}, where=f"{where}: vary")  # names the unknown section
             d[sec][k] = v
+        _keep_varied(d, values)
         label = labels[i] if labels else None
         name = member_name(i, values, width, label)
         d["name"] = f"{base.name}-{name}"
@@ -239,6 +245,18 @@ def _members(base: Case, smoke: bool, keys: list, rows: list, labels: list | Non
                               "(relative paths are relative to the sweep file)")
         out.append(Member(i, name, values, case, label))
     return out
+
+
+def _keep_varied(d: dict, values: dict) -> None:
+    """List the varied keys a fidelity preset would choose in ``d``'s ``fidelity.keep`` (in place).
+
+    A member's varied value is the sweep's explicit setting: the base case's preset must not
+    override it (the same rule as a case file's own keys, :data:`porefsi.case.config.FIDELITY_KEYS`).
+    """
+    fid = d.get("fidelity")
+    varied = [k for k in values if k in FIDELITY_KEYS]
+    if varied and isinstance(fid, dict) and "keep" in fid:
+        d["fidelity"] = {**fid, "keep": sorted(set(fid["keep"]) | set(varied))}
 
 
 def _token(v: Any, path: bool = False) -> str:
