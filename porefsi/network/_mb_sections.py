@@ -240,8 +240,7 @@ def _stair_rad(dt2, a, b, c):
     The staircase's own inscribed radius: ``min sqrt(sum_i max(|k_i| - 1/2, 0)^2)`` over the
     offsets ``k`` of the solid voxels (outside the image is not solid, as in the distance map).
     The nearest solid centre (``sqrt(dt2)`` away) bounds it by ``sqrt(dt2) - 1/2``
-    (:func:`wall_radius`), equal for an axis-aligned wall; a nearer cube can only have its centre
-    within ``sqrt(dt2) - 1/2 + sqrt(3)/2``, so that box is searched.
+    (:func:`wall_radius`), equal for an axis-aligned wall; :func:`_stair_dist` searches below it.
     """
     nx, ny, nz = dt2.shape
     if a < 0 or a >= nx or b < 0 or b >= ny or c < 0 or c >= nz:
@@ -249,23 +248,7 @@ def _stair_rad(dt2, a, b, c):
     d2 = dt2[a, b, c]
     if d2 == 0:
         return 0.0
-    best = math.sqrt(d2) - 0.5
-    best2 = best * best
-    h = int(best + 0.8660254) + 1
-    for i in range(max(a - h, 0), min(a + h, nx - 1) + 1):
-        ei = max(abs(i - a) - 0.5, 0.0) ** 2
-        if ei >= best2:
-            continue
-        for j in range(max(b - h, 0), min(b + h, ny - 1) + 1):
-            ej = ei + max(abs(j - b) - 0.5, 0.0) ** 2
-            if ej >= best2:
-                continue
-            for k in range(max(c - h, 0), min(c + h, nz - 1) + 1):
-                if dt2[i, j, k] == 0:
-                    e = ej + max(abs(k - c) - 0.5, 0.0) ** 2
-                    if e < best2:
-                        best2 = e
-    return math.sqrt(best2)
+    return _stair_dist(dt2, float(a), float(b), float(c), math.sqrt(d2) - 0.5)
 
 
 @jit
