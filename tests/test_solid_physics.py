@@ -57,6 +57,27 @@ def test_homogeneous_uniaxial_stress_finite_strain(mat, c):
     np.testing.assert_allclose(nodal_average(m, von_mises(sig)), abs(szz), rtol=1e-9)
 
 
+@pytest.mark.parametrize("law", ["svk", "neo-hookean"])
+@pytest.mark.parametrize("scale", [1e-7, 0.05])
+def test_element_cauchy_fused_against_reference(law, scale, rng):
+    """The fused P1 kernel's sigma = P F^T / J on a random displacement of a box: per element
+    against the reference twin (its own gradients and first PK stress), at rock strains and at 5 %."""
+    from tests.reference.solid_ref import first_pk_ref, p1_gradients_ref
+
+    mat = StVenantKirchhoff(20e9, 0.28) if law == "svk" else NeoHookean(20e9, 0.28)
+    m = box_mesh((2, 3, 2), (1e-4, 1.5e-4, 1e-4))
+    model = SolidModel(m, mat)
+    u = scale * 1e-4 * rng.standard_normal(model.n_dofs)
+    sig = element_cauchy(model, u, 0.0)
+    dN, _ = p1_gradients_ref(m.points, m.tets)
+    disp = model.full_displacement(u, 0.0).reshape(-1, 3)
+    for e, tet in enumerate(m.tets):
+        H = disp[tet].T @ dN[e]  # H_iJ = sum_a u_ai dN_aJ
+        F = np.eye(3) + H
+        want = first_pk_ref(law, 20e9, 0.28, H) @ F.T / np.linalg.det(F)
+        np.testing.assert_allclose(sig[e], want, rtol=1e-9, atol=1e-12 * np.abs(want).max())
+
+
 def test_uniaxial_strain_modulus_and_equilibrium():
     """A pore-free box under the paper's BCs: E_eff -> lambda + 2 mu (uniaxial strain) as strain -> 0,
     and the reactions on the two platens balance."""

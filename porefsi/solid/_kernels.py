@@ -166,3 +166,37 @@ def _assemble_p1(geometry, u, material, want_K, fint, csr):
                             s += dN[e, a, jj] * H[i, jj]
                         data[base + 3 * i * deg[na]] += v * s
     return n_bad
+
+
+@jit
+def _p1_cauchy(tets, dN, u, material, sigma):
+    """Cauchy stress sigma[e] = P F^T / J (Pa) of every P1 tetrahedron; returns # inverted.
+
+    ``u`` (Nn, 3) nodal displacements, m; ``dN`` (Ne, 4, 3) shape-function gradients;
+    ``material = (kind, lam, mu)``. An inverted element (J <= 0) counts; its stress is NaN
+    (St Venant-Kirchhoff: the formula's value for J < 0, as :meth:`Material.cauchy`).
+    """
+    kind, lam, mu = material
+    n_bad = 0
+    F = np.empty((3, 3))
+    H = np.empty((3, 3))
+    P = np.empty((3, 3))
+    A = np.empty((1, 1, 1, 1))
+    for e in range(tets.shape[0]):
+        for i in range(3):
+            for jj in range(3):
+                s = 0.0
+                for a in range(4):
+                    s += u[tets[e, a], i] * dN[e, a, jj]
+                H[i, jj] = s
+                F[i, jj] = s + (1.0 if i == jj else 0.0)
+        J = _stress_moduli(kind, lam, mu, H, F, P, A, False)
+        if J <= 0.0:
+            n_bad += 1
+            if kind != SVK or J == 0.0:  # Neo-Hookean has no stress there (ln J)
+                sigma[e] = np.nan
+                continue
+        for i in range(3):
+            for k in range(3):
+                sigma[e, i, k] = (P[i, 0] * F[k, 0] + P[i, 1] * F[k, 1] + P[i, 2] * F[k, 2]) / J
+    return n_bad

@@ -12,6 +12,7 @@ import numpy as np
 from skfem import Basis
 
 from porefsi.errors import InputError
+from porefsi.solid import _kernels
 from porefsi.solid.mesh import SolidMesh, tet_volumes
 
 __all__ = ["element_cauchy", "von_mises", "nodal_average", "effective_modulus"]
@@ -29,6 +30,12 @@ def element_cauchy(model, u: np.ndarray, t: float) -> np.ndarray:
         Time (for the prescribed motion), s.
     """
     full = model.full_displacement(u, t)
+    mat = model.material
+    if model.order == 1 and getattr(mat, "kind", -1) in (_kernels.SVK, _kernels.NEO_HOOKEAN):
+        sigma = np.empty((model.mesh.n_tets, 3, 3))  # fused: gradient, P, sigma per element
+        _kernels._p1_cauchy(model.mesh.tets, model.vertex_gradients(), np.ascontiguousarray(full.reshape(-1, 3)),
+                            (int(mat.kind), float(mat.lam), float(mat.mu)), sigma)
+        return sigma
     if model.order == 1:  # no scikit-fem basis for P1 (it would hold 12 gradient fields per element)
         dN = model.vertex_gradients()
         ue = full.reshape(-1, 3)[model.mesh.tets]  # (Ne, 4, 3)
