@@ -23,10 +23,11 @@ conductance is then
 which is also how segments holding different fluids combine (in series, never in parallel;
 the seed paper's eq. 2.6 writes a parallel sum, see ``docs/theory.md``).
 
-A pore on a face of the image box is joined to that face (a reservoir) by a *boundary conduit*:
-a cylinder of the pore radius running from the pore centre to the face
-(:func:`boundary_conduit_lengths`, :func:`boundary_resistance`). Single-phase permeability and
-the drainage graph use the same definition.
+A pore on a face of the image box is joined to that face (a reservoir) by a *boundary conduit*
+running from the pore centre to the face (:func:`boundary_conduit_lengths`,
+:func:`boundary_resistance`): a cylinder of the pore radius (``"paper"``), or a duct of the pore's
+section in series with a duct of the section the face cuts through the pore (``"shape_factor"``).
+Single-phase permeability and the drainage graph use the same definition.
 """
 
 from __future__ import annotations
@@ -244,19 +245,46 @@ def boundary_conduit_lengths(net: Network, axis: str | int) -> tuple[np.ndarray,
 
 
 def boundary_resistance(net: Network, axis: str | int) -> tuple[np.ndarray, np.ndarray]:
-    """Resistance factors of the boundary conduits to the low and high faces of ``axis``, 1/m³.
+    r"""Resistance factors of the boundary conduits to the low and high faces of ``axis``, 1/m³.
 
-    Each is a duct of the pore's section over :func:`boundary_conduit_lengths`: a cylinder of the
-    pore radius, ``h = 8 L / (pi R^4)`` (``"paper"``), or ``L / duct_conductance_factor(R, G_p)``
-    (``"shape_factor"``); with viscosity ``mu`` its conductance is ``1 / (mu h)``.
+    Over the length :math:`L` of :func:`boundary_conduit_lengths`:
+
+    * ``"paper"``: a cylinder of the pore radius, ``h = 8 L / (pi R^4)``;
+    * ``"shape_factor"`` with the face cuts' sections (:attr:`Network.has_face_sections`): a duct of
+      the pore's section and a duct of the *face cut's* section (the section of the pore region
+      the face shows: radius :math:`r_f = \min(` ``pore_face_radius``, R), shape factor
+      ``pore_face_shape_factor``) in series, the face-cut duct taking the share ``f`` =
+      ``pore_face_duct_fraction`` of L (its resistance-equivalent constriction length, measured as
+      for the throats):
+
+      .. math:: h = \frac{(1 - f) L}{k G_p A_p^2} + \frac{f L}{k G_f A_f^2};
+
+      a pore cut through a narrow neck joins the reservoir through that neck, a straight channel
+      crossing the face (:math:`r_f = R`) through its own section;
+    * ``"shape_factor"`` without them (older files): ``L / duct_conductance_factor(R, G_p)``.
+
+    With viscosity ``mu`` the conductance is ``1 / (mu h)``. Single-phase permeability and the
+    drainage graph both use this.
 
     Returns
     -------
     h_lo, h_hi : ndarray of float, shape (Np,)
         1/m³, finite and positive.
     """
-    L_lo, L_hi = boundary_conduit_lengths(net, axis)
-    return pore_duct_resistance(net, L_lo), pore_duct_resistance(net, L_hi)
+    ax = axis_index(axis)
+    L_lo, L_hi = boundary_conduit_lengths(net, ax)
+    h_lo, h_hi = pore_duct_resistance(net, L_lo), pore_duct_resistance(net, L_hi)
+    if net.conduit_model != "shape_factor" or not net.has_face_sections:
+        return h_lo, h_hi
+    out = []
+    for h, L, col in ((h_lo, L_lo, 2 * ax), (h_hi, L_hi, 2 * ax + 1)):
+        on = np.flatnonzero(net.pore_faces[:, col])
+        f = net.pore_face_duct_fraction[on, col]
+        rf = np.minimum(net.pore_face_radius[on, col], net.pore_radius[on])
+        h = h.copy()
+        h[on] = (1.0 - f) * h[on] + f * L[on] / duct_conductance_factor(rf, net.pore_face_shape_factor[on, col])
+        out.append(h)
+    return out[0], out[1]
 
 
 def pore_duct_resistance(net: Network, length, pores=None) -> np.ndarray:
