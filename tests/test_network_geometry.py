@@ -36,6 +36,12 @@ def _square_duct_series(side):
     return side**4 / 12 * (1 - 192 / math.pi**5 * s)
 
 
+def _rect_series(a, b, terms=60):
+    """Poiseuille flow (g mu, m^4) of an a x b rectangle, a <= b: the series written out by hand."""
+    tail = sum(math.tanh((2 * i + 1) * math.pi * b / (2 * a)) / (2 * i + 1) ** 5 for i in range(terms))
+    return a**3 * b / 12 * (1 - 192 * a / (math.pi**5 * b) * tail)
+
+
 def test_duct_conductance_closed_forms():
     r = 2e-6
     # circle: Hagen-Poiseuille pi r^4 / 8
@@ -256,16 +262,17 @@ def test_shape_factor_conduit_is_three_ducts_in_series():
     net = _two_pores(pore_shape_factor=Gp, throat_shape_factor=Gt, throat_duct_fraction=frac)
     assert net.conduit_model == "shape_factor"
     L = 2e-5  # 6 + 10 + 4 um
-    # by hand: g mu = k G A^2 with A = r^2 / (4 G) -> k r^4 / (16 G); pore 1 is a square (G = 1/16)
-    c0 = 0.6 * (5e-6) ** 4 / (16 * 0.03)
-    ct = 0.6 * (2e-6) ** 4 / (16 * 0.02)
+    # by hand: g mu = k G A^2 with A = r^2 / (4 G) -> k r^4 / (16 G); pore 1 is a square (G = 1/16);
+    # below the equilateral triangle's G the geometric mean with the 2r x A/(2r) rectangle
+    c0 = math.sqrt(0.6 * (5e-6) ** 4 / (16 * 0.03) * _rect_series(1e-5, 5e-6 / (8 * 0.03)))
+    ct = math.sqrt(0.6 * (2e-6) ** 4 / (16 * 0.02) * _rect_series(4e-6, 2e-6 / (8 * 0.02)))
     c1 = 0.5623 * (3e-6) ** 4 / (16 * (1 / 16))
     want = [0.2 * L / c0, 0.5 * L / ct, 0.3 * L / c1]
-    np.testing.assert_allclose(resistance_factors(net)[0], want, rtol=1e-12)
+    np.testing.assert_allclose(resistance_factors(net)[0], want, rtol=1e-6)  # series truncations differ
     # reversed conns: the fractions follow their pores
     rev = _two_pores(pore_shape_factor=Gp, throat_shape_factor=Gt, throat_duct_fraction=[[0.3, 0.5, 0.2]],
                      throat_conns=[[1, 0]], throat_pore_length=[[4e-6, 6e-6]])
-    np.testing.assert_allclose(resistance_factors(rev)[0], want, rtol=1e-12)
+    np.testing.assert_allclose(resistance_factors(rev)[0], want, rtol=1e-6)
     # the paper model on the same network ignores the shape factors
     paper = net.with_conductance("paper")
     assert paper.conduit_model == "paper"

@@ -12,7 +12,7 @@ from porefsi.network.network import CIRCLE_SHAPE_FACTOR
 
 __all__ = [
     "MIN_SEGMENT", "digital_radius", "wall_radius", "merge_shallow", "conduit_lengths", "subvoxel_radii",
-    "measure_sections",
+    "measure_sections", "face_sections",
 ]
 
 #: Smallest segment length of a conduit, in voxels (keeps every Network length > 0).
@@ -139,6 +139,60 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, conven
         "area": area, "n_faces": n_faces, "n_wall": n_wall, "throat_G": throat_G, "pore_G": pore_G,
         "d": d, "side_lt": side_lt, "fraction": ducts / ducts.sum(axis=1, keepdims=True),
     }
+
+
+def _face_cuts(labels, dt2, n_p: int):
+    """Per pore and face: voxels of its region in the face layer and the face point of its widest one.
+
+    Returns ``count`` (Np, 6) int64 and ``point`` (Np, 6, 3) float64, the face point being the
+    centre of the widest (largest ``dt2``; the first in C order on ties) layer voxel moved half a
+    voxel outwards onto the box face.
+    """
+    count = np.zeros((n_p, 6), np.int64)
+    point = np.zeros((n_p, 6, 3))
+    for col in range(6):
+        ax, hi = divmod(col, 2)
+        layer = labels.shape[ax] - 1 if hi else 0
+        lab = np.take(labels, layer, axis=ax).ravel()
+        d2 = np.take(dt2, layer, axis=ax).ravel()
+        idx = np.flatnonzero(lab >= 0)
+        count[:, col] = np.bincount(lab[idx], minlength=n_p)
+        order = idx[np.lexsort((idx, -d2[idx].astype(np.int64), lab[idx]))]
+        pores, first = np.unique(lab[order], return_index=True)
+        best = order[first]
+        plane_shape = [s for a, s in enumerate(labels.shape) if a != ax]
+        uv = np.stack(np.unravel_index(best, plane_shape), axis=1).astype(float)
+        pts = np.insert(uv, ax, layer + (0.5 if hi else -0.5), axis=1)
+        point[pores, col] = pts
+    return count, point
+
+
+def face_sections(labels, dt2, centre, r_pore, convention="wall"):
+    """The face cuts' inscribed radius, shape factor and duct fraction (Np, 6) each; 0 off the faces.
+
+    For every pore region touching a box face: area ``A`` = its voxels in the face layer (voxel
+    faces on the face), inscribed radius ``r`` = the largest distance to the voxel staircase
+    within half a voxel of the face point in the face plane (:func:`_face_cuts`; the throat
+    radius's estimator, so outside the box counts as open as for the distance map), at most the
+    pore radius, ``A`` at least ``pi r^2``, ``G = r^2 / (4 A)`` (as for throats), and the share of
+    the pore-centre-to-face-point line the constriction takes: the resistance-equivalent
+    constriction length (:func:`porefsi.network._mb_sections._constriction_lengths`) over the
+    line's length. Voxel units; ``convention`` as in :func:`measure_sections`.
+    """
+    n_p = r_pore.size
+    count, point = _face_cuts(labels, dt2, n_p)
+    on = count > 0
+    p_idx, col = np.nonzero(on)
+    pts = point[p_idx, col]
+    r = np.minimum(_stair_section_peaks(dt2, pts, 0.5, 4), r_pore[p_idx])
+    area = np.maximum(count[p_idx, col].astype(float), np.pi * r**2)
+    conns = np.column_stack([p_idx, p_idx]).astype(np.int64)
+    d, lt = _constriction_lengths(dt2, _radius_table(dt2, convention), centre, pts, conns, r, r_pore, 0.25)
+    out = {k: np.zeros((n_p, 6)) for k in ("radius", "G", "fraction")}
+    out["radius"][p_idx, col] = r
+    out["G"][p_idx, col] = np.minimum(r**2 / (4.0 * area), CIRCLE_SHAPE_FACTOR)
+    out["fraction"][p_idx, col] = np.clip(lt[:, 0] / np.maximum(d[:, 0], 1e-300), 0.0, 1.0)
+    return out
 
 
 def conduit_lengths(centre, r_pore, conns, r_throat, point):

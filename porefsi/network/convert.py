@@ -43,7 +43,13 @@ __all__ = [
 #: Version of the porefsi extras in ``NET.npz`` (``porefsi.format_version``). Version 2 files carry
 #: measured shape factors in ``pore.shape_factor`` / ``throat.shape_factor``, ``porefsi.conductance``
 #: and ``porefsi.throat_duct_fraction``; version 1 files wrote the circle's G there (ignored).
-FORMAT_VERSION = 2
+#: Version 3 adds the face cuts' sections ``porefsi.pore_face_radius`` / ``_shape_factor`` /
+#: ``_duct_fraction`` (Np, 6) (older files load without them: boundary conduits of the pore's section).
+FORMAT_VERSION = 3
+
+#: Network fields of the face cuts and their NET.npz keys.
+_FACE_KEYS = {name: f"porefsi.{name}" for name in ("pore_face_radius", "pore_face_shape_factor",
+                                                     "pore_face_duct_fraction")}
 
 _REQUIRED = ("pore.coords", "pore.diameter", "pore.volume", "throat.conns", "throat.diameter")
 _CONDUIT_PARTS = ("pore1", "throat", "pore2")
@@ -75,7 +81,8 @@ def to_openpnm(net: Network) -> dict[str, np.ndarray]:
         bool; and the porefsi extras ``porefsi.voxel_size`` (m), ``porefsi.shape`` (3,) int,
         ``porefsi.origin`` (3,) m, ``porefsi.format_version``, ``porefsi.has_shape_factors``
         (bool), ``porefsi.conductance`` (str, empty for the default) and, when the network has
-        them, ``porefsi.throat_duct_fraction`` (Nt, 3).
+        them, ``porefsi.throat_duct_fraction`` (Nt, 3) and the face cuts ``porefsi.pore_face_radius``
+        (Np, 6) m, ``porefsi.pore_face_shape_factor`` and ``porefsi.pore_face_duct_fraction`` (Np, 6).
 
     Notes
     -----
@@ -131,6 +138,9 @@ def to_openpnm(net: Network) -> dict[str, np.ndarray]:
     d["porefsi.conductance"] = np.str_(net.conductance or "")
     if net.throat_duct_fraction is not None:
         d["porefsi.throat_duct_fraction"] = net.throat_duct_fraction.copy()
+    if net.has_face_sections:
+        for name, key in _FACE_KEYS.items():
+            d[key] = getattr(net, name).copy()
     return d
 
 
@@ -214,7 +224,8 @@ def from_openpnm(d: Mapping, *, voxel_size: float | None = None, shape=None, ori
     files written by porefsi format 2 with ``porefsi.has_shape_factors`` set and from files
     without porefsi extras (e.g. OpenPNM's import of pnextract networks); porefsi format-1 files
     wrote the circle's value there, which carries no measurement, so they load with the paper's
-    model as before.
+    model as before. The face cuts' sections come from format-3 files (older files load without
+    them: boundary conduits of the pore's own section).
     """
     if not isinstance(d, Mapping) and not hasattr(d, "keys"):
         raise InputError(f"expected a mapping of OpenPNM arrays, got {type(d).__name__}")
@@ -281,6 +292,8 @@ def _shape_extras(d: Mapping) -> dict:
         out["pore_shape_factor"] = np.array(d["pore.shape_factor"], dtype=float)
         if "porefsi.throat_duct_fraction" in d:
             out["throat_duct_fraction"] = np.array(d["porefsi.throat_duct_fraction"], dtype=float)
+        if version is not None and int(version[0]) >= 3 and all(k in d for k in _FACE_KEYS.values()):
+            out.update({name: np.array(d[key], dtype=float) for name, key in _FACE_KEYS.items()})
     model = _scalar_extra(d, "porefsi.conductance")
     if model is not None and str(model[0]):
         name = str(model[0])

@@ -34,6 +34,7 @@ from porefsi.network._mb_conduits import (
     MIN_SEGMENT,
     conduit_lengths,
     digital_radius,
+    face_sections,
     measure_sections,
     merge_shallow,
     subvoxel_radii,
@@ -446,6 +447,7 @@ def _conduits(dt2, labels, top: _Topology, conductance) -> _Conduits:
     if convention == "wall":
         r_pore, r_throat = subvoxel_radii(dt2, top.centre, top.point, conns, top.w)
     sec = measure_sections(labels, dt2, top.centre, top.point, conns, r_throat, r_pore, convention)
+    sec["face"] = face_sections(labels, dt2, top.centre, r_pore, convention)
     return _Conduits(r_pore, r_throat, lt, lp, sec)
 
 
@@ -467,6 +469,9 @@ def _network(shape, vs: float, origin, top: _Topology, geo: _Conduits, conductan
         pore_shape_factor=geo.sec["pore_G"],
         throat_duct_fraction=geo.sec["fraction"],
         conductance=conductance,
+        pore_face_radius=geo.sec["face"]["radius"] * vs,
+        pore_face_shape_factor=geo.sec["face"]["G"],
+        pore_face_duct_fraction=geo.sec["face"]["fraction"],
     )
 
 

@@ -11,7 +11,9 @@ the coupled run):
     Valvatne & Blunt (2004) / Patzek & Silin (2001): every segment is a straight duct whose section
     is a triangle, a square or a circle, chosen by its shape factor G = A/P² (:func:`shape_class`),
     of area ``A = r² / (4 G)`` (r the inscribed radius), with single-phase conductance per unit
-    length ``k G A² / mu`` (:func:`duct_conductance_factor`).
+    length ``k G A² / mu`` (:func:`tangential_conductance_factor`); a section of G below the
+    equilateral triangle's takes the geometric mean of that and the rectangle of the same r and A
+    (:func:`duct_conductance_factor`).
 
 A throat conduit is three segments in series (pore-i part, cylinder, pore-j part). Each segment
 has a *hydraulic resistance factor* ``h`` (1/m³) such that, for a fluid of viscosity ``mu`` in
@@ -23,10 +25,11 @@ conductance is then
 which is also how segments holding different fluids combine (in series, never in parallel;
 the seed paper's eq. 2.6 writes a parallel sum, see ``docs/theory.md``).
 
-A pore on a face of the image box is joined to that face (a reservoir) by a *boundary conduit*:
-a cylinder of the pore radius running from the pore centre to the face
-(:func:`boundary_conduit_lengths`, :func:`boundary_resistance`). Single-phase permeability and
-the drainage graph use the same definition.
+A pore on a face of the image box is joined to that face (a reservoir) by a *boundary conduit*
+running from the pore centre to the face (:func:`boundary_conduit_lengths`,
+:func:`boundary_resistance`): a cylinder of the pore radius (``"paper"``), or a duct of the pore's
+section in series with a duct of the section the face cuts through the pore (``"shape_factor"``).
+Single-phase permeability and the drainage graph use the same definition.
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ __all__ = [
     "shape_class",
     "class_shape_factor",
     "duct_conductance_factor",
+    "tangential_conductance_factor",
+    "rectangle_conductance_factor",
     "duct_lengths",
     "cylinder_resistance",
     "sphere_segment_resistance",
@@ -91,13 +96,59 @@ def class_shape_factor(shape_factor) -> np.ndarray:
     return np.where(cls == 0, G, np.where(cls == 1, 1.0 / 16.0, CIRCLE_SHAPE_FACTOR))
 
 
-def duct_conductance_factor(radius, shape_factor) -> np.ndarray:
-    r"""Conductance per unit length times viscosity of a straight duct, ``k G A^2``, m⁴.
+def rectangle_conductance_factor(short_side, long_side, n_terms: int = 20) -> np.ndarray:
+    r"""Exact Poiseuille conductance per unit length times viscosity of an a × b rectangle, m⁴.
+
+    .. math:: g\mu = \frac{a^3 b}{12}\left[1 - \frac{192\,a}{\pi^5 b}
+              \sum_{n\ \mathrm{odd}} \frac{\tanh(n \pi b / 2a)}{n^5}\right], \quad a \le b
+
+    (the series solution; ``n_terms`` odd terms, relative truncation error below 1e-6 for 20).
+    The square's value is :math:`0.035144\,a^4` = Patzek & Silin's :math:`0.5623\,G A^2`.
+
+    Parameters
+    ----------
+    short_side, long_side : array_like of float
+        a <= b, m.
+    """
+    a = np.asarray(short_side, dtype=float)
+    b = np.asarray(long_side, dtype=float)
+    acc = np.zeros(np.broadcast(a, b).shape)
+    for n in range(1, 2 * n_terms, 2):
+        acc = acc + np.tanh(n * np.pi * b / (2.0 * a)) / n**5
+    return a**3 * b / 12.0 * (1.0 - 192.0 * a / (np.pi**5 * b) * acc)
+
+
+def tangential_conductance_factor(radius, shape_factor) -> np.ndarray:
+    r"""Valvatne–Blunt duct conductance per unit length times viscosity, ``k G_c A^2``, m⁴.
 
     With inscribed radius r and the class shape factor :math:`G_c` (:func:`class_shape_factor`)
-    the section area is :math:`A = r^2/(4G_c)`, so :math:`k G_c A^2 = k r^4 / (16 G_c)`; a duct
-    of length L has resistance factor ``L / (k G_c A^2)`` (1/m³). For a circle this is
-    Hagen–Poiseuille's :math:`\pi r^4 / 8`.
+    the section area is :math:`A = r^2/(4G_c)`, so :math:`k G_c A^2 = k r^4 / (16 G_c)`: exact for
+    the equilateral triangle, the square and the circle (Hagen–Poiseuille's :math:`\pi r^4 / 8`),
+    i.e. for sections whose every side touches the inscribed circle.
+    """
+    r = np.asarray(radius, dtype=float)
+    G = np.asarray(shape_factor, dtype=float)
+    k = np.asarray(SHAPE_K)[shape_class(G)]
+    Gc = class_shape_factor(G)
+    return k * r**4 / (16.0 * Gc)
+
+
+def duct_conductance_factor(radius, shape_factor) -> np.ndarray:
+    r"""Conductance per unit length times viscosity of a straight duct of the measured section, m⁴.
+
+    The section is known by its inscribed radius r and area :math:`A = r^2 / (4G)`. Down to the
+    equilateral triangle's shape factor (:data:`TRIANGLE_MAX_G`; :math:`A \le 3\sqrt3\, r^2`) it is
+    Valvatne & Blunt's :func:`tangential_conductance_factor`, exact for the circle, the square and
+    the equilateral triangle. A section of smaller G is none of these: its r and A are shared by a
+    triangle whose every side touches the inscribed circle (the Valvatne–Blunt law, 0.45–0.51× the
+    exact flow of a slit) and by a rectangle :math:`2r \times A/(2r)` (:func:`rectangle_conductance_factor`,
+    exact for slits, above the triangle law by 16 % at the equilateral triangle's G and by 2–2.2× for
+    slits), which the pair cannot tell apart. The duct takes their geometric mean, the estimate
+    whose worst ratio to either shape is smallest:
+
+    .. math:: g\mu = \sqrt{g_{VB}\, g_{rect}}, \qquad G < \sqrt3/36.
+
+    It is a duct of length L's resistance factor ``L / g`` (1/m³).
 
     Parameters
     ----------
@@ -113,9 +164,13 @@ def duct_conductance_factor(radius, shape_factor) -> np.ndarray:
     """
     r = np.asarray(radius, dtype=float)
     G = np.asarray(shape_factor, dtype=float)
-    k = np.asarray(SHAPE_K)[shape_class(G)]
-    Gc = class_shape_factor(G)
-    return k * r**4 / (16.0 * Gc)
+    vb = tangential_conductance_factor(r, G)
+    elongated = G < TRIANGLE_MAX_G * (1 - 1e-9)
+    if not np.any(elongated):
+        return vb
+    long_side = r / (8.0 * G)  # A / (2 r), > 3 sqrt(3) r / 2 where elongated
+    rect = rectangle_conductance_factor(2.0 * r, np.maximum(long_side, 2.0 * r))
+    return np.where(elongated, np.sqrt(vb * rect), vb)
 
 
 def cylinder_resistance(radius, length):
@@ -244,19 +299,46 @@ def boundary_conduit_lengths(net: Network, axis: str | int) -> tuple[np.ndarray,
 
 
 def boundary_resistance(net: Network, axis: str | int) -> tuple[np.ndarray, np.ndarray]:
-    """Resistance factors of the boundary conduits to the low and high faces of ``axis``, 1/m³.
+    r"""Resistance factors of the boundary conduits to the low and high faces of ``axis``, 1/m³.
 
-    Each is a duct of the pore's section over :func:`boundary_conduit_lengths`: a cylinder of the
-    pore radius, ``h = 8 L / (pi R^4)`` (``"paper"``), or ``L / duct_conductance_factor(R, G_p)``
-    (``"shape_factor"``); with viscosity ``mu`` its conductance is ``1 / (mu h)``.
+    Over the length :math:`L` of :func:`boundary_conduit_lengths`:
+
+    * ``"paper"``: a cylinder of the pore radius, ``h = 8 L / (pi R^4)``;
+    * ``"shape_factor"`` with the face cuts' sections (:attr:`Network.has_face_sections`): a duct of
+      the pore's section and a duct of the *face cut's* section (the section of the pore region
+      the face shows: radius :math:`r_f = \min(` ``pore_face_radius``, R), shape factor
+      ``pore_face_shape_factor``) in series, the face-cut duct taking the share ``f`` =
+      ``pore_face_duct_fraction`` of L (its resistance-equivalent constriction length, measured as
+      for the throats):
+
+      .. math:: h = \frac{(1 - f) L}{k G_p A_p^2} + \frac{f L}{k G_f A_f^2};
+
+      a pore cut through a narrow neck joins the reservoir through that neck, a straight channel
+      crossing the face (:math:`r_f = R`) through its own section;
+    * ``"shape_factor"`` without them (older files): ``L / duct_conductance_factor(R, G_p)``.
+
+    With viscosity ``mu`` the conductance is ``1 / (mu h)``. Single-phase permeability and the
+    drainage graph both use this.
 
     Returns
     -------
     h_lo, h_hi : ndarray of float, shape (Np,)
         1/m³, finite and positive.
     """
-    L_lo, L_hi = boundary_conduit_lengths(net, axis)
-    return pore_duct_resistance(net, L_lo), pore_duct_resistance(net, L_hi)
+    ax = axis_index(axis)
+    L_lo, L_hi = boundary_conduit_lengths(net, ax)
+    h_lo, h_hi = pore_duct_resistance(net, L_lo), pore_duct_resistance(net, L_hi)
+    if net.conduit_model != "shape_factor" or not net.has_face_sections:
+        return h_lo, h_hi
+    out = []
+    for h, L, col in ((h_lo, L_lo, 2 * ax), (h_hi, L_hi, 2 * ax + 1)):
+        on = np.flatnonzero(net.pore_faces[:, col])
+        f = net.pore_face_duct_fraction[on, col]
+        rf = np.minimum(net.pore_face_radius[on, col], net.pore_radius[on])
+        h = h.copy()
+        h[on] = (1.0 - f) * h[on] + f * L[on] / duct_conductance_factor(rf, net.pore_face_shape_factor[on, col])
+        out.append(h)
+    return out[0], out[1]
 
 
 def pore_duct_resistance(net: Network, length, pores=None) -> np.ndarray:

@@ -104,6 +104,47 @@ def _duct_fraction(value, n_t: int, swapped) -> np.ndarray | None:
     return a
 
 
+#: The per-pore, per-face section fields of the face cuts (:attr:`Network.pore_face_radius` ...).
+_FACE_FIELDS = ("pore_face_radius", "pore_face_shape_factor", "pore_face_duct_fraction")
+
+
+def _face_fields(net, f: dict, n_p: int) -> dict:
+    """Validated face-cut sections: all three (Np, 6) fields or none; zero off the faces."""
+    given = [getattr(net, name) is not None for name in _FACE_FIELDS]
+    out: dict = dict.fromkeys(_FACE_FIELDS)
+    if not any(given):
+        return out
+    if not all(given):
+        missing = [n for n, g in zip(_FACE_FIELDS, given, strict=True) if not g]
+        raise InputError(
+            f"Network face-cut sections are incomplete ({', '.join(missing)} missing); give all of "
+            f"{', '.join(_FACE_FIELDS)} or none (re-extract the network)"
+        )
+    if net.throat_shape_factor is None:
+        raise InputError(
+            "Network face-cut sections (pore_face_*) need the measured shape factors too; give "
+            "throat_shape_factor and pore_shape_factor, or drop the pore_face_* fields"
+        )
+    on = f["pore_faces"]
+    rules = {
+        "pore_face_radius": (lambda a: a > 0, "> 0"),
+        "pore_face_shape_factor": (lambda a: (a > 0) & (a <= CIRCLE_SHAPE_FACTOR * (1 + 1e-9)),
+                                   f"in (0, 1/(4 pi) = {CIRCLE_SHAPE_FACTOR:.6f}]"),
+        "pore_face_duct_fraction": (lambda a: (a >= 0) & (a <= 1), "in [0, 1]"),
+    }
+    for name, (ok, what) in rules.items():
+        a = _arr(name, getattr(net, name), float, (n_p, 6))
+        bad = np.argwhere(np.where(on, ~ok(a), a != 0))
+        if bad.size:
+            p, k = (int(v) for v in bad[0])
+            where = f"on face {FACES[k]}, must be {what}" if on[p, k] else f"off face {FACES[k]}, must be 0"
+            raise InputError(
+                f"Network.{name}[{p}, {k}] is {a[p, k]!r} ({where}); fix the value or re-extract the network"
+            )
+        out[name] = a
+    return out
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Network:
     """A pore network of spherical pores joined by cylindrical throats (SI units).
@@ -151,6 +192,16 @@ class Network:
         the shape-factor model, each > 0, rows summing to 1 (dimensionless, so a deformation that
         scales the lengths keeps them). ``None``: the shape-factor model uses the stored lengths
         themselves (as for networks read from pnextract's files).
+    pore_face_radius, pore_face_shape_factor, pore_face_duct_fraction : ndarray of float, shape (Np, 6), optional
+        The *face cut* of every pore on a box face (columns in :data:`FACES` order; 0 where the
+        pore does not touch that face): the inscribed radius (m, > 0; the flow models use at most
+        the pore radius, so a deformation that shrinks the pore need not update it) and shape
+        factor (in (0, 1/(4 pi)]) of the section of the pore region's voxels the face shows, and
+        the share of the boundary conduit (pore centre to face) its constriction takes, in [0, 1]
+        (dimensionless, like ``throat_duct_fraction``). The shape-factor model's boundary
+        conduits are a pore duct and a face-cut duct in series
+        (:func:`porefsi.network.geometry.boundary_resistance`). Give all three or none (they need
+        the shape factors); ``None``: boundary conduits of the pore's own section (older files).
     conductance : {'paper', 'shape_factor'} or None, optional
         Conduit model every flow computation uses (:data:`CONDUCTANCE_MODELS`; see
         :mod:`porefsi.network.geometry`). ``None`` (default): ``'shape_factor'`` when both shape
@@ -162,8 +213,9 @@ class Network:
         Shapes, non-numeric or non-integer entries, NaNs, non-positive sizes, self-loops,
         duplicate throats (in either order), throat radius larger than a pore radius, pore
         indices out of range, a bad ``voxel_size`` or ``shape``, shape factors outside
-        (0, 1/(4 pi)] or only one of the two given, an unknown ``conductance``, or
-        ``conductance='shape_factor'`` without shape factors.
+        (0, 1/(4 pi)] or only one of the two given, an unknown ``conductance``,
+        ``conductance='shape_factor'`` without shape factors, or face-cut sections incomplete,
+        without shape factors, out of range on a face or non-zero off it.
 
     Notes
     -----
@@ -189,6 +241,9 @@ class Network:
     pore_shape_factor: np.ndarray | None = None
     throat_duct_fraction: np.ndarray | None = None
     conductance: str | None = None
+    pore_face_radius: np.ndarray | None = None
+    pore_face_shape_factor: np.ndarray | None = None
+    pore_face_duct_fraction: np.ndarray | None = None
 
     def __post_init__(self):
         coords = _own("pore_coords", self.pore_coords, float)
@@ -201,6 +256,7 @@ class Network:
         f["throat_conns"], swapped = _check_throats(conns, f, n_p)
         f.update(_shape_fields(self, n_p, n_t))
         f["throat_duct_fraction"] = _duct_fraction(self.throat_duct_fraction, n_t, swapped)
+        f.update(_face_fields(self, f, n_p))
         f["voxel_size"] = positive_length(self.voxel_size, "Network.voxel_size")
         f["shape"] = _image_shape(self.shape)
         for k, v in f.items():
@@ -214,6 +270,11 @@ class Network:
         if self.conductance is not None:
             return self.conductance
         return "paper" if self.throat_shape_factor is None else "shape_factor"
+
+    @property
+    def has_face_sections(self) -> bool:
+        """Whether the network carries the face cuts' sections (``pore_face_*``)."""
+        return self.pore_face_radius is not None
 
     @property
     def has_shape_factors(self) -> bool:

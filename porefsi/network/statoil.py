@@ -58,9 +58,12 @@ def write_statoil(net: Network, prefix: str | os.PathLike, axis: str | int = "x"
 
     Pore index ``-1`` is the inlet reservoir and ``0`` the outlet reservoir. Every inlet pore
     (``net.inlet(axis)``) gets a link to ``-1`` and every outlet pore a link to ``0``, numbered
-    after the ``Nt`` internal throats. Such a boundary link has the pore's radius and, with ``d``
-    the distance from the pore centre to the face (at least half a voxel), a pore-side length
-    ``d/2``, a cylinder ``d/2``, a reservoir-side length 0 and volume 0. Coordinates are written
+    after the ``Nt`` internal throats. Such a boundary link has, with ``d`` the distance from the
+    pore centre to the face (at least half a voxel), a reservoir-side length 0 and volume 0 and
+    either (shape-factor model with face sections) the face cut's radius and shape factor, a
+    cylinder ``f d`` and a pore-side length ``(1 - f) d`` (``f`` = ``pore_face_duct_fraction``),
+    or the pore's radius, a cylinder ``d/2`` and a pore-side length ``d/2``; :func:`read_statoil`
+    reads the face cuts of the flow axis's faces back from them. Coordinates are written
     relative to the box corner (pnflow ignores an origin). Shape factors are the network's measured
     ones and the lengths its shape-factor ducts (:func:`porefsi.network.geometry.duct_lengths`)
     when its conduit model is ``"shape_factor"``; otherwise the circle's :math:`1/(4\pi)` and the
@@ -102,6 +105,7 @@ def _links(net: Network, ax: int) -> tuple[dict, np.ndarray]:
     dbd = np.concatenate([d_in, d_out])
     bd_pores = np.concatenate([inl, out])
     shaped = net.conduit_model == "shape_factor"
+    b_rad, b_G, b_f = _boundary_links(net, ax, inl, out, shaped)
     L = duct_lengths(net) if shaped else np.column_stack(
         [net.throat_pore_length[:, 0], net.throat_length, net.throat_pore_length[:, 1]])
     tG = net.throat_shape_factor if shaped else np.full(net.n_throats, CIRCLE_SHAPE_FACTOR)
@@ -109,14 +113,28 @@ def _links(net: Network, ax: int) -> tuple[dict, np.ndarray]:
     links = {
         "p1": np.concatenate([net.throat_conns[:, 0] + 1, np.full(inl.size, -1), np.full(out.size, 0)]),
         "p2": np.concatenate([net.throat_conns[:, 1] + 1, inl + 1, out + 1]),
-        "radius": np.concatenate([net.throat_radius, net.pore_radius[bd_pores]]),
-        "G": np.concatenate([tG, pG[bd_pores]]),
+        "radius": np.concatenate([net.throat_radius, b_rad]),
+        "G": np.concatenate([tG, pG[bd_pores] if b_G is None else b_G]),
         "l1": np.concatenate([L[:, 0], np.zeros(bd_pores.size)]),
-        "lt": np.concatenate([L[:, 1], 0.5 * dbd]),
-        "l2": np.concatenate([L[:, 2], 0.5 * dbd]),
+        "lt": np.concatenate([L[:, 1], b_f * dbd]),
+        "l2": np.concatenate([L[:, 2], (1.0 - b_f) * dbd]),
         "volume": np.concatenate([net.throat_volume, np.zeros(bd_pores.size)]),
     }
     return links, pG
+
+
+def _boundary_links(net: Network, ax: int, inl: np.ndarray, out: np.ndarray, shaped: bool):
+    """Radius, shape factor (None: the pores') and throat share of the inlet then outlet links.
+
+    The face cut (radius at most the pore's, its G and constriction share) when the network has
+    face sections and the shape-factor model; else the pore radius and half the length.
+    """
+    bd = np.concatenate([inl, out])
+    if not (shaped and net.has_face_sections):
+        return net.pore_radius[bd], None, np.full(bd.size, 0.5)
+    cols = np.concatenate([np.full(inl.size, 2 * ax), np.full(out.size, 2 * ax + 1)])
+    rad = np.minimum(net.pore_face_radius[bd, cols], net.pore_radius[bd])
+    return rad, net.pore_face_shape_factor[bd, cols], net.pore_face_duct_fraction[bd, cols]
 
 
 def _write_links(path1: Path, path2: Path, k: dict) -> None:
@@ -223,6 +241,7 @@ def read_statoil(
     internal = (a >= 1) & (b >= 1)
     faces = _faces(a, b, flags, ax)
     org = np.zeros(3) if origin is None else np.asarray(origin, dtype=float)
+    shape_factors = _statoil_shape_factors(link1[internal, 4], node2[:, 3])
     return Network(
         pore_coords=coords[:, inv] + org,
         pore_radius=node2[:, 2],
@@ -236,8 +255,37 @@ def read_statoil(
         shape=tuple(shape),
         origin=org,
         throat_volume=link2[internal, 6],
-        **_statoil_shape_factors(link1[internal, 4], node2[:, 3]),
+        **shape_factors,
+        **(_face_sections(link1, link2, faces, ax) if shape_factors else {}),
     )
+
+
+def _face_sections(link1: np.ndarray, link2: np.ndarray, faces: np.ndarray, ax: int) -> dict:
+    """Face cuts of the ``axis`` faces from the boundary links (radius, G, throat share of the length).
+
+    Empty (no face sections) unless every pore on those faces has exactly one link to its
+    reservoir with a positive finite radius and shape factor. The four other faces carry none
+    (their labels are not part of the format).
+    """
+    a, b = link1[:, 1].astype(np.int64), link1[:, 2].astype(np.int64)
+    n_p = faces.shape[0]
+    out = {k: np.zeros((n_p, 6)) for k in ("pore_face_radius", "pore_face_shape_factor", "pore_face_duct_fraction")}
+    for res, col in ((-1, 2 * ax), (0, 2 * ax + 1)):
+        rows = np.flatnonzero((a == res) | (b == res))
+        pores = np.maximum(a, b)[rows] - 1
+        if np.unique(pores).size != pores.size or not np.array_equal(np.sort(pores), np.flatnonzero(faces[:, col])):
+            return {}
+        rad, G = link1[rows, 3], link1[rows, 4]
+        if not (np.all(np.isfinite(rad) & (rad > 0)) and np.all(np.isfinite(G) & (G > 0))):
+            return {}
+        lt = link2[rows, 5]
+        lp = np.where(b[rows] == pores + 1, link2[rows, 4], link2[rows, 3])
+        total = lt + lp
+        out["pore_face_radius"][pores, col] = rad
+        out["pore_face_shape_factor"][pores, col] = np.minimum(G, CIRCLE_SHAPE_FACTOR)
+        share = np.clip(lt / np.where(total > 0, total, 1.0), 0.0, 1.0)
+        out["pore_face_duct_fraction"][pores, col] = np.where(total > 0, share, 0.5)
+    return out
 
 
 def _read_node1(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
