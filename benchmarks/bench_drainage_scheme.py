@@ -81,6 +81,8 @@ def main(argv=None):
     p.add_argument("--ca", nargs="+", default=["paper"])
     p.add_argument("--cache", default=str(HERE / "_drainage_scheme"))
     p.add_argument("--max-cpu", type=float, default=np.inf)
+    p.add_argument("--max-wall", type=float, default=np.inf, help="stop a run after this many wall seconds")
+    p.add_argument("--samples", type=int, default=40, help="inlet-pressure samples to breakthrough (a solve each)")
     p.add_argument("--image")
     p.add_argument("--schemes", nargs="+", default=["exact", "adaptive"])
     p.add_argument("--fresh", action="store_true", help="recompute the adaptive runs even if cached")
@@ -105,7 +107,8 @@ def main(argv=None):
                 path = cache / f"{name}_{spec}_{s}{tag if s != 'exact' else ''}"
                 rec = load_run(path)
                 if rec is None or (s != "exact" and args.fresh):
-                    rec = run_sampled(net, fl, rate, s, max_cpu=args.max_cpu, **(opts if s != "exact" else {}))
+                    rec = run_sampled(net, fl, rate, s, samples=args.samples, max_cpu=args.max_cpu,
+                                      max_wall=args.max_wall, **(opts if s != "exact" else {}))
                     save_run(path, rec, dict(net=name, n_pores=net.n_pores, ca=ca, commit=git_commit()))
                 recs[s] = rec
                 c = rec["counters"]

@@ -38,8 +38,9 @@ def _load():
     return [float(v) for v in open("/proc/loadavg").read().split()[:3]] if os.path.exists("/proc/loadavg") else []
 
 
-def run_sampled(net, fl, rate, scheme, samples=40, tail=1.25, max_cpu=np.inf, **options):
-    """Drain ``net`` at ``rate`` with ``scheme`` to ``tail`` x breakthrough; return the run's record (dict)."""
+def run_sampled(net, fl, rate, scheme, samples=40, tail=1.25, max_cpu=np.inf, max_wall=np.inf, **options):
+    """Drain ``net`` at ``rate`` with ``scheme`` to ``tail`` x breakthrough (or until ``max_cpu`` CPU /
+    ``max_wall`` wall seconds, checked at the samples); return the run's record (dict)."""
     ip = invasion_percolation(net, fl, axis="x", stop_at_breakthrough=True)
     vol = net.pore_volume
     v_bt = float(vol[ip.pore_sequence >= 0].sum())
@@ -57,7 +58,8 @@ def run_sampled(net, fl, rate, scheme, samples=40, tail=1.25, max_cpu=np.inf, **
         pin.append(st.inlet_pressure)
         sw.append(st.sw)
         bt = sim.breakthrough_time
-        done = (np.isfinite(bt) and st.t >= tail * bt) or time.process_time() - c0 > max_cpu
+        done = ((np.isfinite(bt) and st.t >= tail * bt) or time.process_time() - c0 > max_cpu
+                or time.perf_counter() - w0 > max_wall)
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
     h = sim.history()
     e = sim._engine

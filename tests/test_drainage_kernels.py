@@ -1,6 +1,7 @@
 """Numba kernels of the drainage model against their naive twins (tests/reference/drainage_ref.py)."""
 
 import numpy as np
+import pytest
 
 from porefsi.flow import _kernels as kern
 from porefsi.flow._drainage_graph import build_graph
@@ -111,3 +112,41 @@ def test_ball_matches_twin(rng):
         got = kern._ball(seeds, g.indptr, g.nbr, allowed, hops)
         np.testing.assert_array_equal(got, ref.ball(seeds, g.indptr, g.nbr, allowed, hops))
         assert got.sum() >= np.count_nonzero(allowed[seeds])
+
+
+def _wetting_twin(x, indptr, nbr, res, usable, out_res):
+    """min(out_res[x], min_y res[x, y] + d(y)) with d a fresh (scipy) search over ``usable``."""
+    d = ref.dijkstra_to_outlet(indptr, nbr, res, usable, out_res)
+    best = out_res[x]
+    for p in range(indptr[x], indptr[x + 1]):
+        if usable[nbr[p]]:
+            best = min(best, res[p] + d[nbr[p]])
+    return best
+
+
+def test_wetting_bound_from_a_cached_search_is_the_fresh_one_or_says_it_is_not(rng):
+    # the adaptive batches reuse the last d_W search while the region shrinks: where the kernel
+    # says "exact" its value is the fresh search's; otherwise it is still an upper bound's input
+    g = _graph(rng, (8, 6, 5))
+    n = g.n
+    res = 1.0 / g.gw[g.nbr_edge]
+    adj = (g.indptr, g.nbr, res)
+    n_exact = n_stale = 0
+    for _ in range(4):
+        region = rng.random(n) < 0.9
+        search = kern._dijkstra_to_outlet(g.indptr, g.nbr, res, region, g.out_res_w)
+        for _ in range(6):
+            region = region & (rng.random(n) < 0.93)  # the wetting region only shrinks
+            for x in rng.choice(n, 12, replace=False):
+                want = _wetting_twin(x, g.indptr, g.nbr, res, region, g.out_res_w)
+                got, exact = kern._wetting_bound(x, adj, search, region, g.out_res_w[x])
+                if exact:
+                    n_exact += 1
+                    assert got == pytest.approx(want, rel=1e-12) or got == want == np.inf
+                else:
+                    n_stale += 1
+                    assert got >= want * (1 - 1e-12)
+                fresh = kern._dijkstra_to_outlet(g.indptr, g.nbr, res, region, g.out_res_w)
+                got, exact = kern._wetting_bound(x, adj, fresh, region, g.out_res_w[x])
+                assert exact and (got == pytest.approx(want, rel=1e-12) or got == want == np.inf)
+    assert n_exact > 50 and n_stale > 5  # both branches taken

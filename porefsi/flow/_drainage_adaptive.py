@@ -117,6 +117,8 @@ class AdaptiveEngine(Engine):
         self.dn_full = 0  # full pores d_N accounts for (-1: stale, recomputed before the next batch)
         self.n_certified = 0
         self.n_batches = 0
+        self.dw_dist = self.dw_pred = None  # the last wetting-path search (d_W), over a region that only shrinks
+        self.n_dw_searches = 0
         self.backoff = 0  # after a batch that certified nothing, this many quiet steps skip the attempt
         self.backoff_left = 0  # (doubling up to _MAX_BACKOFF; a certified batch resets it)
 
@@ -293,7 +295,6 @@ class AdaptiveEngine(Engine):
 
     def _batch(self, t_target) -> int:
         """Apply the certified prefix of a predicted batch; return the number of fills applied."""
-        g = self.g
         seq, usable = self._predict(t_target)
         if not seq:
             return 0
@@ -302,15 +303,9 @@ class AdaptiveEngine(Engine):
         if not self._bound(e, x, 0.0) < nxt * self.margin:  # fails without its wetting part
             return 0
         self.n_batches += 1
-        dw, _ = kern._dijkstra_to_outlet(g.indptr, g.nbr, self._nbr_res, usable, g.out_res_w)
         done = 0
         for e, x, nxt in seq:
-            rw = g.out_res_w[x]
-            lo, hi = g.indptr[x], g.indptr[x + 1]
-            nb = g.nbr[lo:hi]
-            m = usable[nb]
-            if m.any():
-                rw = min(rw, float(np.min(self._nbr_res[lo:hi][m] + dw[nb[m]])))
+            rw = self._wetting_bound(x, usable)
             if not self._bound(e, x, rw) < nxt * self.margin:
                 break
             self._certified_jump(e, x)
@@ -319,6 +314,23 @@ class AdaptiveEngine(Engine):
             if self.t >= t_target or not np.isnan(self.t_breakthrough):
                 break
         return done
+
+    def _wetting_bound(self, x, usable) -> float:
+        """``min_y (1/g_w,xy + d_W(y))`` over x's neighbours in ``usable`` (and x's own outlet conduit).
+
+        ``d_W`` is the shortest wetting path to the outlet in ``usable``: read from the last
+        search where its path is still usable (the wetting region only shrinks, so it is still
+        the shortest), searched afresh only where a broken path could give a smaller value.
+        """
+        g = self.g
+        adj = (g.indptr, g.nbr, self._nbr_res)
+        if self.dw_pred is not None:
+            rw, exact = kern._wetting_bound(x, adj, (self.dw_dist, self.dw_pred), usable, g.out_res_w[x])
+            if exact:
+                return rw
+        self.dw_dist, self.dw_pred = kern._dijkstra_to_outlet(g.indptr, g.nbr, self._nbr_res, usable, g.out_res_w)
+        self.n_dw_searches += 1
+        return kern._wetting_bound(x, adj, (self.dw_dist, self.dw_pred), usable, g.out_res_w[x])[0]
 
     def _bound(self, e, x, rw):
         """Upper bound of the inlet pressure while ``x`` fills alone through ``e``, given ``R_W <= rw``."""

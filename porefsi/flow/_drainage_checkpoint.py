@@ -195,6 +195,10 @@ def load(path: str | Path, key: str) -> dict:
     if meta.get("kind") != "porefsi drainage checkpoint" or meta.get("format") != FORMAT:
         raise InputError(f"cannot resume: {path} is not a drainage checkpoint of this porefsi version "
                          f"(format {meta.get('format')!r}, this version writes {FORMAT}); {_FIX}")
+    if meta.get("key") != key and "sim.options" not in meta:
+        raise InputError(f"cannot resume: {path} was written by a porefsi version before the drainage options "
+                         "object (2026-12-02), whose run fingerprint this version cannot match to the command; "
+                         f"{_FIX}")
     if meta.get("key") != key:
         raise InputError(f"cannot resume: the checkpoint {path} belongs to a different run (network, fluids, "
                          "rate, axis, times or solver options differ); repeat the original command with "

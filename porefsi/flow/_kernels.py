@@ -221,6 +221,37 @@ def _path_usable(x, pred, usable, max_len):
 
 
 @jit
+def _wetting_bound(x, adjacency, search, usable, out_res_x):
+    """Shortest wetting path resistance from pore ``x`` to the outlet, from a cached search.
+
+    ``adjacency = (indptr, nbr, nbr_res)``; ``search = (dist, pred)`` is a
+    :func:`_dijkstra_to_outlet` result over a wetting region that contains ``usable`` (the region
+    only shrinks). Returns ``(r, exact)``: ``r = min(out_res_x, min_y nbr_res[x, y] + d(y))`` over
+    usable neighbours ``y`` whose cached path is still usable (there ``d(y) = dist[y]``, the
+    shortest distance in ``usable`` too), and whether ``r`` is the value a fresh search over
+    ``usable`` would give: false when a neighbour whose cached path is broken has a cached
+    distance (a lower bound of its fresh one) below ``r``.
+    """
+    indptr, nbr, nbr_res = adjacency
+    dist, pred = search
+    n = indptr.shape[0] - 1
+    best = out_res_x
+    low_broken = _INF
+    for p in range(indptr[x], indptr[x + 1]):
+        y = nbr[p]
+        if not usable[y]:
+            continue
+        v = nbr_res[p] + dist[y]
+        if v >= best:
+            continue
+        if _path_usable(y, pred, usable, n):
+            best = v
+        elif v < low_broken:
+            low_broken = v
+    return best, low_broken >= best
+
+
+@jit
 def _n_distance(indptr, nbr, nbr_res, full, in_res):
     """Shortest non-wetting path resistance from the virtual inlet node to every full pore.
 
