@@ -43,7 +43,12 @@ RUNS = {
     "uniform4": {"coarsen": 4},
     "graded_3_12_g0.5": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 0.5, "refine": "invaded"},
     "graded_3_12_g1": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 1.0, "refine": "invaded"},
+    "graded_3_12_g0.5_lig1": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 0.5, "refine": "invaded",
+                              "ligaments": 1.0},
+    "graded_3_12_g0.5_lig2": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 0.5, "refine": "invaded",
+                              "ligaments": 2.0},
 }
+LIG_BINS = (0, 4, 8, 12, 16, 24, 1e9)
 DIST_BINS = (0, 3, 6, 12, 24, 48, 1e9)
 
 
@@ -104,6 +109,12 @@ def main(argv=None) -> int:
     vs = probe.image.voxel_size
     ijk = np.clip(np.rint((X - np.asarray(probe.image.origin)) / vs).astype(int), 0, np.asarray(img.shape) - 1)
     d_pt = dist[ijk[:, 0], ijk[:, 1], ijk[:, 2]]
+    pore = probe.image.phases != 0
+    lig = dist + ndimage.distance_transform_edt(~(pore & ~refine))  # ligament thickness through each voxel
+    t_pt = lig[ijk[:, 0], ijk[:, 1], ijk[:, 2]]
+    from porefsi.solid.graded import mean_chord
+
+    print(f"refined voxels {int(refine.sum())}, their mean chord {mean_chord(refine):.2f} voxels", flush=True)
     ref2 = np.sum(c2 ** 2, axis=1)
     for name in args.runs:
         res = sa.run_variant(base.replace(name=name, solid=runs[name]))
@@ -120,6 +131,13 @@ def main(argv=None) -> int:
                                        "err_share": float(e2[sel].sum() / e2.sum()),
                                        "ref_share": float(ref2[sel].sum() / ref2.sum()),
                                        "err_contrib": float(np.sqrt(e2[sel].sum() / ref2.sum()))})
+        row["by_ligament"] = []
+        for lo, hi in zip(LIG_BINS[:-1], LIG_BINS[1:], strict=True):
+            sel = (t_pt >= lo) & (t_pt < hi)
+            row["by_ligament"].append({"from": lo, "to": hi, "n": int(sel.sum()),
+                                       "err_share": float(e2[sel].sum() / e2.sum()),
+                                       "ref_share": float(ref2[sel].sum() / ref2.sum()),
+                                       "err_contrib": float(np.sqrt(e2[sel].sum() / ref2.sum()))})
         for s in np.unique(edge):
             sel = edge == s
             row["by_leaf"].append({"edge": float(s), "n": int(sel.sum()), "err_share": float(e2[sel].sum() / e2.sum()),
@@ -129,6 +147,9 @@ def main(argv=None) -> int:
         print(f"{name}: err {row['err']:.3f} CPU {res['cpu_s']:.1f} nodes {res['n_nodes']}", flush=True)
         for b in row["by_distance"]:
             print(f"   dist [{b['from']:g},{b['to']:g}) n {b['n']:5d} err share {b['err_share']:.2f} "
+                  f"ref share {b['ref_share']:.2f} contrib {b['err_contrib']:.3f}")
+        for b in row["by_ligament"]:
+            print(f"   ligament [{b['from']:g},{b['to']:g}) n {b['n']:5d} err share {b['err_share']:.2f} "
                   f"ref share {b['ref_share']:.2f} contrib {b['err_contrib']:.3f}")
         for b in row["by_leaf"]:
             print(f"   leaf {b['edge']:g} n {b['n']:5d} err share {b['err_share']:.2f} ref share {b['ref_share']:.2f} "
