@@ -123,8 +123,8 @@ def measure(sa, case, ref) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--images", nargs="*", default=["berea_crop", "blobs", "tiled"])
-    ap.add_argument("--phase", default="all", choices=("ref", "sweep", "auto", "all", "calibrate", "fit", "report",
-                                                       "sample_auto", "chart"))
+    ap.add_argument("--phase", default="all", choices=("ref", "sweep", "auto", "all", "calibrate", "from_study", "fit",
+                                                       "report", "sample_auto", "chart"))
     ap.add_argument("--work", type=Path, default=ROOT / "_heldout")
     ap.add_argument("--berea", type=Path, default=None)
     ap.add_argument("--tolerances", nargs="*", type=float, default=[0.3, 0.45])
@@ -134,6 +134,8 @@ def main(argv=None) -> int:
     sa = study_module()
     if args.phase == "calibrate":
         return calibrate(sa, args.work)
+    if args.phase == "from_study":
+        return calibrate_from_study(args.work)
     if args.phase == "fit":
         return write_calibration(args.work / "calibration.json")
     if args.phase == "report":
@@ -211,6 +213,37 @@ def calibrate(sa, work: Path) -> int:
         print(name, {k: v for k, v in runs[name].items() if "stage" not in k}, flush=True)
         out["runs"] = runs
         f.write_text(json.dumps(out, indent=1))
+    return 0
+
+
+#: Study runs (cases/speed_accuracy/results.json) under the names the fit reads them by.
+STUDY_NAMES = {"coarsen3": "coarsen3_static", "linear_c5_cold": "response_auto"}
+
+
+def calibrate_from_study(work: Path) -> int:
+    """``calibration.json`` from the speed-accuracy study's own last run (no new runs).
+
+    The study measures every run the calibration needs (coarsen 3 static, coarsen 12, the linear
+    response, the adaptive drainage are among its variants) against its reference (coarsen 3,
+    TDG 2 passes, 0.5 s steps: equal to the quasi-static 1 s-step one to 1e-8) with CPU seconds per
+    stage, so the chart and the calibration are the same runs.
+    """
+    study = json.loads((STUDY / "results.json").read_text())
+    runs = {}
+    for r in study["runs"]:
+        if r.get("status") != "ok" or r.get("stage_cpu_seconds") is None:
+            continue
+        runs[STUDY_NAMES.get(r["name"], r["name"])] = {
+            "status": r["status"], "cpu_s": r["cpu_s"], "n_nodes": r["n_nodes"], "n_dofs": r["n_dofs"],
+            "n_tets": r["n_tets"], "stage_seconds": r["stage_cpu_seconds"], "stage_wall_seconds": r["stage_seconds"],
+            "err_field": r["err_field"], "diff_vs_baseline": r.get("diff_vs_baseline"), "overrides": r["overrides"],
+            "load": r.get("load")}
+    loads = [x for r in runs.values() if r.get("load") for x in r["load"][:1]]
+    out = {"load": [min(loads), float(np.median(loads)), max(loads)] if loads else [float("nan")] * 3,
+           "utc": study["runs"][0].get("utc", study["reference"].get("built_utc")), "commit": _git_head(),
+           "from_study": str(STUDY / "results.json"), "runs": runs}
+    (work / "calibration.json").write_text(json.dumps(out, indent=1))
+    print(f"calibration.json: {len(runs)} runs from the study, load min/median/max {out['load']}")
     return 0
 
 

@@ -270,3 +270,65 @@ def test_coupled_run_graded_against_the_uniform_mesh_of_its_fine_block():
     err = np.linalg.norm(ug_at_u - uu) / np.linalg.norm(uu)
     assert err < 0.25, err
     assert np.abs(ug).max() == pytest.approx(np.abs(uu).max(), rel=0.10)
+
+
+def _three_pores(n=40, r=6, gap=2, far=14):
+    """Solid cube with three spherical pores along x: A (refined), B at ``gap`` voxels of wall from A,
+    C at ``far`` voxels of wall from A on the other side. Returns (image, A mask, centres)."""
+    g = np.indices((n, n, n)).astype(float) + 0.5
+    ca = np.array([n / 2, n / 2, n / 2])
+    cb, cc = ca + [2 * r + gap, 0, 0], ca - [2 * r + far, 0, 0]
+    ball = [np.sum((g - c[:, None, None, None]) ** 2, axis=0) < r * r for c in (ca, cb, cc)]
+    return VoxelImage((ball[0] | ball[1] | ball[2]).astype(np.uint8), H), ball[0], (ca, cb, cc)
+
+
+def test_ligament_region_keeps_thin_walls_to_other_pores_only():
+    """The thin wall between the refined pore and a near pore joins the fine region, the thick wall to
+    a far pore and the solid behind the refined pore do not; a brute-force thickness check on a few voxels."""
+    from porefsi.solid.graded import ligament_region, mean_chord
+
+    img, a, (ca, cb, cc) = _three_pores()
+    pore = img.phases == 1
+    reg = ligament_region(pore, a, 1.0)
+    D = mean_chord(a)
+    assert 8.0 < D < 12.0  # a ball of radius 6: mean chord 4r/3 = 8 on the continuum, a bit more on voxels
+    mid_ab = np.floor((ca + cb) / 2).astype(int)  # the middle of the 2-voxel wall between A and B
+    mid_ac = np.floor((ca + cc) / 2).astype(int)  # the middle of the 14-voxel wall between A and C
+    behind = np.floor(ca + [0, 6 + 4, 0]).astype(int)  # solid 4 voxels beyond A, away from B and C
+    assert reg[tuple(mid_ab)] and not reg[tuple(mid_ac)] and not reg[tuple(behind)]
+    assert np.array_equal(reg & pore, a)  # only solid is added, never another pore
+    # brute force: t(v) = distance to A + distance to the other pores, at a few solid voxels
+    other = np.argwhere(pore & ~a) + 0.5
+    aa = np.argwhere(a) + 0.5
+    rng = np.random.default_rng(0)
+    solid = np.argwhere(~pore)
+    for v in solid[rng.choice(len(solid), 60, replace=False)]:
+        t = np.sqrt(((aa - v - 0.5) ** 2).sum(1)).min() + np.sqrt(((other - v - 0.5) ** 2).sum(1)).min()
+        if abs(t - D) > 1e-6:
+            assert reg[tuple(v)] == (t <= D)
+    assert np.array_equal(ligament_region(pore, a, 0.0), a)
+
+
+def test_graded_mesh_with_ligaments_is_conforming_and_fine_across_the_thin_wall():
+    """``ligaments``: conforming, same quality bounds, more fine leaves than without, the thin wall meshed
+    at the fine block size (nodes every ``coarsen`` voxels across it), the thick wall coarser."""
+    img, a, (ca, cb, cc) = _three_pores(gap=4)
+    plain = mesh_graded(img, coarsen=1, coarsen_max=8, grading=0.5, refine=a)
+    lig = mesh_graded(img, coarsen=1, coarsen_max=8, grading=0.5, refine=a, ligaments=1.0)
+    for m in (plain.mesh, lig.mesh):
+        _check_conforming(m)
+        lo, hi, rr = tet_quality(m.points, m.tets)
+        assert lo.min() > 35.26 and hi.max() < 125.27 and rr.min() > 0.62
+    assert lig.leaf_counts[1] > plain.leaf_counts[1] and lig.mesh.n_nodes > plain.mesh.n_nodes
+    # tetrahedra in the 4-voxel A-B wall near the axis: one voxel across with ligaments, coarser without
+    def wall_extent(m):
+        P = m.points / H
+        cen = P[m.tets].mean(axis=1)
+        ext = (P[m.tets].max(axis=1) - P[m.tets].min(axis=1)).max(axis=1)
+        sel = (np.abs(cen[:, 0] - (ca[0] + cb[0]) / 2) < 2.0) & (np.hypot(cen[:, 1] - ca[1], cen[:, 2] - ca[2]) < 2)
+        assert sel.any()
+        return ext[sel].max()
+
+    assert wall_extent(lig.mesh) <= 1.0 + 1e-9 < wall_extent(plain.mesh)
+    with pytest.raises(InputError, match="ligaments"):
+        mesh_graded(img, refine=a, ligaments=-1.0)

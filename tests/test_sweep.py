@@ -234,7 +234,7 @@ def test_docs_sweep_examples_are_valid(tmp_path):
         assert len(s.members) == 8 and s.plot.logx
 
 
-@pytest.mark.parametrize("name, n", [("flow_rates", 9), ("strain_rate", 4), ("speed_accuracy", 22)])
+@pytest.mark.parametrize("name, n", [("flow_rates", 9), ("strain_rate", 4), ("speed_accuracy", 25)])
 def test_case_sweeps_load(name, n):
     """The cases' sweep files are valid and hold the studies' members (speed_accuracy: all but `skip`)."""
     s = load_sweep(Path(__file__).parent.parent / "cases" / name / "sweep.toml")

@@ -79,6 +79,9 @@ class SolidOptions:
                          "inside grains); invaded = the pores invasion percolation fills with twice the injected "
                          "volume (drainage.rate x drainage.t_end), where the fluid load sits",
                          choices=("walls", "invaded"))
+    ligaments: float = option(0.0, "graded mesh: also keep fine the solid ligaments between the refined pores "
+                              "and the other pores thinner than this many mean chords of the refined pores "
+                              "(where their load concentrates; 0 = off)", limits=Limits(0.0))
 
     def __post_init__(self):
         validate(self, "solid")

@@ -137,7 +137,7 @@ def build_solid(image: VoxelImage, options: SolidOptions, refine: np.ndarray | N
     """
     if options.mesh == "graded":
         mres = mesh_graded(image, coarsen=options.coarsen, coarsen_max=options.coarsen_max, grading=options.grading,
-                           refine=refine, support_axis=options.load_axis)
+                           refine=refine, support_axis=options.load_axis, ligaments=options.ligaments)
     else:
         mres = mesh_solid(image, coarsen=options.coarsen, support_axis=options.load_axis)
     material = make_material(options.material, E=options.E, nu=options.nu, density=options.density)

@@ -52,13 +52,53 @@ from porefsi.solid.mesh import (
     image_box,
 )
 
-__all__ = ["mesh_graded", "leaf_levels", "balance_levels"]
+__all__ = ["mesh_graded", "leaf_levels", "balance_levels", "ligament_region", "mean_chord"]
 
 # The 3x3x3 lattice of a leaf cube: local point (a, b, c) in {0, 1, 2}^3 has index 9a + 3b + c.
 _CENTRE = 13
 _LATTICE = np.array([[a, b, c] for a in range(3) for b in range(3) for c in range(3)])
 #: Edge midpoints and face centres of the lattice (the points a finer neighbour can add), in bit order.
 _HANGING = np.array([p for p in range(27) if p != _CENTRE and np.count_nonzero(_LATTICE[p] == 1) >= 1])
+
+
+def mean_chord(mask: np.ndarray) -> float:
+    """Mean length (voxels) of the runs of ``mask`` voxels along the three axes (0 for an empty mask)."""
+    runs = 0
+    for ax in range(3):
+        m = np.moveaxis(mask, ax, 0).astype(np.int8)
+        runs += int(np.count_nonzero(np.diff(m, axis=0, prepend=0) == 1))
+    return 3.0 * float(np.count_nonzero(mask)) / runs if runs else 0.0
+
+
+def ligament_region(pore: np.ndarray, refine: np.ndarray, factor: float) -> np.ndarray:
+    """``refine`` plus the solid ligaments between it and the other pores thinner than ``factor`` loaded chords.
+
+    A solid voxel ``v`` lies on a ligament of thickness about ``t(v) = d_R(v) + d_P(v)``, its
+    distances (voxels) to the nearest ``refine`` voxel and to the nearest other pore voxel (equality
+    on the segment joining the two nearest points). The ligament keeps the load's stress
+    concentrated when it is thin against the loaded pore (a wall of thickness ``t`` between two
+    holes of diameter ``D`` carries about ``D / t`` times the pressure): voxels with
+    ``t(v) <= factor * D``, ``D`` the mean chord of ``refine`` (:func:`mean_chord`), join the
+    region meshed at the fine block size.
+
+    Parameters
+    ----------
+    pore, refine : ndarray of bool, shape (nx, ny, nz)
+        Pore voxels; voxels to resolve finely (the loaded pores; a subset of ``pore``).
+    factor : float
+        Ligament thickness limit in loaded chords (>= 0; 0 returns ``refine``).
+
+    Returns
+    -------
+    ndarray of bool, shape (nx, ny, nz)
+    """
+    if factor <= 0 or not refine.any():
+        return refine.copy()
+    other = pore & ~refine
+    if not other.any():
+        return refine.copy()
+    t = ndimage.distance_transform_edt(~refine) + ndimage.distance_transform_edt(~other)
+    return refine | (~pore & (t <= factor * mean_chord(refine)))
 
 
 def leaf_levels(refine: np.ndarray, full: np.ndarray, n_levels: int, grading: float) -> np.ndarray:
@@ -242,12 +282,15 @@ def _leaf_solid(fine: np.ndarray, lines, lev: np.ndarray, threshold: float) -> n
     return out
 
 
-def _check_graded_args(image, coarsen_max, grading, refine) -> np.ndarray:
+def _check_graded_args(image, coarsen_max, grading, refine, ligaments=0.0) -> np.ndarray:
     """The refine mask (voxels) of :func:`mesh_graded`, after checking its own arguments."""
     if isinstance(coarsen_max, bool) or not isinstance(coarsen_max, (int, np.integer)) or coarsen_max < 1:
         raise InputError(f"coarsen_max must be an integer >= 1 (voxels), got {coarsen_max!r}")
     if not (isinstance(grading, (int, float, np.floating, np.integer)) and np.isfinite(grading) and grading > 0):
         raise InputError(f"grading must be a finite number > 0, got {grading!r}; 1 is the usual choice")
+    if not (isinstance(ligaments, (int, float, np.floating, np.integer)) and np.isfinite(ligaments)
+            and ligaments >= 0):
+        raise InputError(f"ligaments must be a finite number >= 0 (loaded chords), got {ligaments!r}; 0 turns it off")
     if refine is None:
         return image.phases != 0
     refine = np.asarray(refine)
@@ -267,6 +310,7 @@ def mesh_graded(
     threshold: float = 0.5,
     keep: str = "supported",
     support_axis: str | int | None = "z",
+    ligaments: float = 0.0,
 ) -> MeshResult:
     """Mesh the solid of ``image`` with blocks of ``coarsen`` voxels near ``refine``, coarser away from it.
 
@@ -290,6 +334,9 @@ def mesh_graded(
         fraction is >= ``threshold``, so the walls there are those of the coarser block size.
     threshold, keep, support_axis
         As for :func:`~porefsi.solid.mesh.mesh_solid`.
+    ligaments : float, default 0
+        Also keep fine the solid ligaments between ``refine`` and the other pores thinner than
+        ``ligaments`` mean chords of ``refine`` (:func:`ligament_region`; 0: off).
 
     Returns
     -------
@@ -301,12 +348,14 @@ def mesh_graded(
     ------
     InputError
         Bad arguments (as :func:`~porefsi.solid.mesh.mesh_solid`, plus ``coarsen_max`` < 1,
-        ``grading`` <= 0, or a ``refine`` mask of another shape).
+        ``grading`` <= 0, ``ligaments`` < 0, or a ``refine`` mask of another shape).
     MeshError
         No solid, or no solid connected to the supports.
     """
     _check_mesh_args(image, coarsen, threshold, keep)
-    refine = _check_graded_args(image, coarsen_max, grading, refine)
+    refine = _check_graded_args(image, coarsen_max, grading, refine, ligaments)
+    if ligaments > 0:
+        refine = ligament_region(image.phases != 0, refine & (image.phases != 0), float(ligaments))
     c = int(coarsen)
     fine = image.phases == 0
     fraction, lines = _coarsen(fine, c)
