@@ -575,9 +575,11 @@ def _renumbered(net, labels, perm):
     conns[flip] = conns[flip][:, ::-1]
     tpl = net.throat_pore_length.copy()
     tpl[flip] = tpl[flip][:, ::-1]
+    per_pore = {k: getattr(net, k)[perm] for k in ("pore_shape_factor", "pore_face_radius", "pore_face_shape_factor",
+                                                   "pore_face_duct_fraction") if getattr(net, k) is not None}
     new = net.replace(pore_coords=net.pore_coords[perm], pore_radius=net.pore_radius[perm],
                       pore_volume=net.pore_volume[perm], pore_faces=net.pore_faces[perm], throat_conns=conns,
-                      throat_pore_length=tpl)
+                      throat_pore_length=tpl, **per_pore)
     return new, np.where(labels >= 0, inv[np.maximum(labels, 0)], labels)
 
 
