@@ -575,10 +575,11 @@ def _renumbered(net, labels, perm):
     conns[flip] = conns[flip][:, ::-1]
     tpl = net.throat_pore_length.copy()
     tpl[flip] = tpl[flip][:, ::-1]
-    per_pore = {f.name: getattr(net, f.name)[perm] for f in dataclasses.fields(net)
-                if f.name.startswith("pore_") and isinstance(getattr(net, f.name), np.ndarray)
-                and getattr(net, f.name).shape[:1] == (net.n_pores,)}  # every per-pore field, face cuts too
-    new = net.replace(**per_pore, throat_conns=conns, throat_pore_length=tpl)
+    per_pore = {k: getattr(net, k)[perm] for k in ("pore_shape_factor", "pore_face_radius", "pore_face_shape_factor",
+                                                   "pore_face_duct_fraction") if getattr(net, k) is not None}
+    new = net.replace(pore_coords=net.pore_coords[perm], pore_radius=net.pore_radius[perm],
+                      pore_volume=net.pore_volume[perm], pore_faces=net.pore_faces[perm], throat_conns=conns,
+                      throat_pore_length=tpl, **per_pore)
     return new, np.where(labels >= 0, inv[np.maximum(labels, 0)], labels)
 
 

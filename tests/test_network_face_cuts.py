@@ -137,3 +137,25 @@ def test_bad_face_sections_are_refused(cut_spheres):
             net.replace(**{name: a})
     with pytest.raises(InputError, match="shape factors"):
         net.replace(throat_shape_factor=None, pore_shape_factor=None, throat_duct_fraction=None)
+
+
+def test_drainage_enters_a_cut_pore_through_its_face_cut():
+    from porefsi.flow._drainage_graph import build_graph
+    from porefsi.flow.fluids import Fluids
+
+    R, fl = 10.0, Fluids()
+    for d, narrow in ((3.5, False), (8.5, True)):
+        half = _cut_sphere(d, R)[: int(d - 0.5 + 2 * R + 4) + 1]  # up to the second sphere's centre
+        pore = np.concatenate([half, half[::-1]], axis=0)  # cut at depth d by both x faces: spans x
+        net = extract_network(VoxelImage(pore.astype(np.uint8), voxel_size=1e-6)).network
+        g = build_graph(net, fl, "x")
+        e = int(np.flatnonzero(g.a == g.n)[0])  # the inlet edge
+        p = int(g.keep[g.b[e]])
+        assert net.pore_faces[p, 0]
+        body = fl.entry_pressure(net.pore_radius[[p]], net.pore_shape_factor[[p]])[0]
+        cut = fl.entry_pressure(net.pore_face_radius[[p], 0], net.pore_face_shape_factor[[p], 0])[0]
+        assert g.thr[e] == pytest.approx(max(body, cut), rel=1e-12)
+        # the narrow cut (cap radius 5.3 of a 9.3 staircase pore) is entered at ~1.7x the body's pressure
+        assert (g.thr[e] / body > 1.4) == narrow
+        # the boundary conduits of single-phase flow and of the drainage graph are one definition
+        assert 1.0 / (fl.mu_w * g.gw[e]) == pytest.approx(boundary_resistance(net, "x")[0][p], rel=1e-12)

@@ -5,11 +5,14 @@ the virtual inlet (a reservoir of injected non-wetting fluid) and node ``n + 1``
 outlet (P = 0). Edges are the network's throats between kept pores plus one boundary edge per
 inlet pore ``(n, i)`` and per outlet pore ``(i, n + 1)``.
 
-Boundary edges are conduits through the boundary pore itself: a duct of the pore's section (a
-cylinder of the pore radius in the paper's model) whose length is the distance from the pore
-centre to the face, floored at a quarter of the pore radius so that a centre on the face keeps a
-finite conductance. Their entry pressure is the pore-body capillary pressure (the face cuts the
-pore, so no narrower constriction is known).
+Boundary edges are the boundary conduits of single-phase flow
+(:func:`porefsi.network.geometry.boundary_resistance`: from the pore centre to the face, floored at
+a quarter of the pore radius so that a centre on the face keeps a finite conductance; a cylinder of
+the pore radius in the paper's model, the pore's duct and the face cut's duct in the shape-factor
+model). An inlet edge's entry pressure is the pore-body capillary pressure, or with the
+shape-factor model and the face cuts' sections (:attr:`Network.has_face_sections`) the larger of
+that and the face cut's entry pressure (the non-wetting fluid enters the pore through the section
+the face cuts).
 
 Conductances and entry pressures follow the network's conduit model
 (:attr:`Network.conduit_model`): with ``"shape_factor"`` the throat entry pressures and pore-body
@@ -123,7 +126,12 @@ def build_graph(net: Network, fluids: Fluids, axis, keep: np.ndarray | None = No
     pcb[:n] = fluids.entry_pressure(R, net.pore_shape_factor[keep] if shaped else None)
     pe_t = fluids.entry_pressure(net.throat_radius[tid], net.throat_shape_factor[tid] if shaped else None)
     pe_int = np.maximum(pe_t, np.maximum(pcb[ai], pcb[bi]))
-    thr = np.concatenate([pe_int, pcb[inl], np.full(out.size, np.inf)])
+    pe_in = pcb[inl]
+    if shaped and net.has_face_sections:
+        p_in, col = keep[inl], 2 * ax
+        r_face = np.minimum(net.pore_face_radius[p_in, col], net.pore_radius[p_in])
+        pe_in = np.maximum(pe_in, fluids.entry_pressure(r_face, net.pore_face_shape_factor[p_in, col]))
+    thr = np.concatenate([pe_int, pe_in, np.full(out.size, np.inf)])
     # adjacency over internal edges
     m = ai.size
     src = np.concatenate([ai, bi])

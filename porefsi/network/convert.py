@@ -130,6 +130,13 @@ def to_openpnm(net: Network) -> dict[str, np.ndarray]:
     }
     for k, name in enumerate(FACES):
         d[f"pore.{name}"] = net.pore_faces[:, k].copy()
+    d.update(_porefsi_extras(net, shaped))
+    return d
+
+
+def _porefsi_extras(net: Network, shaped: bool) -> dict[str, np.ndarray]:
+    """The ``porefsi.*`` keys of :func:`to_openpnm`."""
+    d: dict[str, np.ndarray] = {}
     d["porefsi.voxel_size"] = np.float64(net.voxel_size)
     d["porefsi.shape"] = np.asarray(net.shape, dtype=np.int64)
     d["porefsi.origin"] = net.origin.copy()
