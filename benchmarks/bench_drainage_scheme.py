@@ -61,10 +61,13 @@ def _network(name, image, cache):
 
 
 def _number(v: str):
-    try:
-        return int(v)
-    except ValueError:
-        return float(v)
+    """An option value from the command line: int, else float, else the string (e.g. solver=lowrank)."""
+    for kind in (int, float):
+        try:
+            return kind(v)
+        except ValueError:
+            pass
+    return v
 
 
 def _rate(spec, net, fl):

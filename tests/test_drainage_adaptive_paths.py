@@ -61,7 +61,7 @@ def test_per_jump_skip_inside_the_adaptive_scheme_keeps_the_exact_events(net, ca
 def test_adaptive_auto_solver_is_split_above_its_pore_count_and_an_explicit_solver_turns_it_off():
     ca = 1e-7
     auto = DrainageOptions(scheme="adaptive")
-    assert auto.engine_options(ADAPTIVE_SPLIT_ABOVE + 1, ca)["solver"] == "split"
+    assert auto.engine_options(ADAPTIVE_SPLIT_ABOVE + 1, ca)["solver"] == "lowrank_or_split"
     assert auto.engine_options(ADAPTIVE_SPLIT_ABOVE, ca)["solver"] == "auto"
     for solver in ("lowrank", "direct", "amg"):
         o = DrainageOptions(scheme="adaptive", solver=solver)
@@ -107,3 +107,24 @@ def test_adaptive_run_carried_onto_a_deformed_network_keeps_the_exact_events(net
     assert b.counters["n_certified_fills"] > 0
     _same_events(a.invasion_time(), b.invasion_time())
     assert b.breakthrough_time == pytest.approx(a.breakthrough_time, rel=1e-7)
+
+
+@pytest.mark.parametrize("limit", [0.0, 1e9])
+def test_lowrank_or_split_chooses_by_the_first_factors_fill_and_keeps_the_exact_events(net, monkeypatch, limit):
+    """The adaptive scheme's solver above ADAPTIVE_SPLIT_ABOVE pores: 'split' where the first LU
+    is dense (limit 0: always), else 'lowrank' from that factor; either way the run is the exact
+    scheme's to the solvers' tolerance (certified batches, tie tolerance 0)."""
+    from porefsi.flow import _drainage_solver as ds
+
+    monkeypatch.setattr(ds, "_SPLIT_FILL", limit)
+    fl = Fluids()
+    rate = _rate_for_ca(net, fl, 1e-6)
+    kw = dict(rate=rate, t_end=1e9, stop_at_breakthrough=True)
+    ref = simulate_drainage(net, fl, scheme="exact", **kw)
+    sim = DrainageSimulator(net, fl, rate=rate, scheme="adaptive", tie_tolerance=0.0)
+    sim._engine.solver.method = "lowrank_or_split"  # what 'auto' is above ADAPTIVE_SPLIT_ABOVE pores
+    while np.isnan(sim.breakthrough_time):
+        sim._engine.step(np.inf)
+    so = sim._engine.solver
+    assert so.method == ("split" if limit == 0.0 else "lowrank") and so.fill > 1.0
+    _same_events(ref.invasion_time, sim.invasion_time())

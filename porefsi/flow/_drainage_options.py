@@ -35,10 +35,12 @@ DEFAULT_TIE_TOLERANCE = 1.0
 #: certificate only. Measured (docs/stability.md, section f): at Ca = 1e-5 a tolerance of 1 put the
 #: breakthrough time of a 1200-pore lattice 4.7 % off; at 1e-6 and below every run stayed within 0.3 %.
 TIE_MAX_CA = 1e-6
-#: Above this many pores the adaptive scheme's ``solver="auto"`` is ``"split"`` (AMG-CG on the
-#: wetting block): its global solves follow batches that changed hundreds of rows, which cost the
-#: low-rank solver a refactorisation each (30k lattice, paper rate: 35 CPU s split against 154 s
-#: low-rank; 10k: 3.3 s against 1.9 s).
+#: Above this many pores the adaptive scheme's ``solver="auto"`` is ``"lowrank_or_split"``: the
+#: first factorisation decides, ``"split"`` (AMG-CG on the wetting block) when its fill exceeds
+#: 300 entries per unknown, else ``"lowrank"``. After a batch hundreds of rows have changed, which
+#: costs the low-rank solver a refactorisation: worth it where the factor is sparse (2x2x2-tiled
+#: Berea network, 211 per unknown: ~4.7x the split's progress), not where it is dense (30k
+#: lattice, 436: split 35 CPU s against low-rank 154 s). Below, ``"lowrank"`` (10k: 1.9 s against 3.3 s).
 ADAPTIVE_SPLIT_ABOVE = 20000
 _ADAPTIVE_KNOBS = {"local_solves": DEFAULT_LOCAL_SOLVES, "hops": DEFAULT_HOPS, "local_menisci": DEFAULT_LOCAL_MENISCI,
                    "tie_tolerance": DEFAULT_TIE_TOLERANCE}
@@ -61,7 +63,9 @@ class DrainageOptions:
                          choices=SCHEMES)
     inlet_pressure: float | None = option(None, "constant inlet pressure (gauge, outlet at 0) instead of the "
                                           "constant rate", unit="Pa", optional=True)
-    solver: str = option("auto", "pressure solver: auto = direct up to 400 unknowns, else lowrank; direct = a fresh "
+    solver: str = option("auto", "pressure solver: auto = direct up to 400 unknowns, else lowrank (adaptive scheme "
+                         "above 20000 pores: lowrank, or split when the first LU has over 300 entries per unknown); "
+                         "direct = a fresh "
                          "sparse LU per solve; lowrank = one LU reused through low-rank updates (a direct solve to "
                          "round-off); amg = CG with a reused AMG hierarchy; jacobi = diagonal CG (tests); split, "
                          "hybrid = non-wetting block direct, wetting block CG", choices=SOLVERS)
@@ -99,7 +103,7 @@ class DrainageOptions:
         """Keyword arguments of the event engine for ``n_pores`` kept pores at capillary number ``ca``.
 
         Above :data:`TIE_MAX_CA` the tie tolerance is 0 (the rigorous certificate); the adaptive
-        scheme's ``'auto'`` solver is ``'split'`` above :data:`ADAPTIVE_SPLIT_ABOVE` pores.
+        scheme's ``'auto'`` solver is ``'lowrank_or_split'`` above :data:`ADAPTIVE_SPLIT_ABOVE` pores.
         """
         skip = n_pores > 5000 if self.skip_solves == "auto" else self.skip_solves == "on"
         out = dict(solver=self.solver, skip_solves=skip, max_active_set_iter=self.max_active_set_iter or None,
@@ -107,7 +111,7 @@ class DrainageOptions:
         if self.scheme == "adaptive":
             out.update({k: getattr(self, k) for k in _ADAPTIVE_KNOBS})
             if self.solver == "auto" and n_pores > ADAPTIVE_SPLIT_ABOVE:
-                out["solver"] = "split"
+                out["solver"] = "lowrank_or_split"
             if not ca <= TIE_MAX_CA * (1 + 1e-9):  # (a rate made from Ca = 1e-6 may round above it)
                 out["tie_tolerance"] = 0.0
         return out

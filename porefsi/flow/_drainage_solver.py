@@ -55,7 +55,13 @@ from porefsi.errors import ConvergenceError, InputError
 
 __all__ = ["PressureSolver"]
 
-_METHODS = ("auto", "lowrank", "direct", "amg", "jacobi", "split", "hybrid")
+_METHODS = ("auto", "lowrank", "direct", "amg", "jacobi", "split", "hybrid", "lowrank_or_split")
+#: Fill of the first LU (entries of L and U per unknown) above which ``'lowrank_or_split'`` solves
+#: ``'split'``: measured at the paper rate (adaptive scheme), 10k lattice 232 (low-rank 1.9 CPU s
+#: against split 3.3), 400^3 Berea network 33 and 2x2x2-tiled 211 (low-rank ~4.7x the split's
+#: progress: 66 CG iterations per split solve), 30k lattice 436 (split 35 s against 154 s), 100k
+#: lattice 934 (split).
+_SPLIT_FILL = 300.0
 
 
 #: Consecutive failed low-rank updates after which the solver factorises directly, and for how
@@ -119,6 +125,7 @@ class PressureSolver:
         self.split_rtol = _SPLIT_RTOL  # residual target of the split solves
         self._amg_data = None  # values of the (scaled) matrix the AMG hierarchy was built from
         self._amg_ref = None  # CG iterations of the first solve after the build (rebuild at twice)
+        self.fill = None  # 'lowrank_or_split': entries of L + U per unknown of the first factorisation
 
     def __setstate__(self, d):  # solvers pickled before the prefetch counters existed
         d.setdefault("prefetch", True)
@@ -176,8 +183,9 @@ class PressureSolver:
         which would cost the low-rank solver a factorisation).
         """
         self.n_solves += 1
+        lu0 = self._choose_by_fill(A) if self.method == "lowrank_or_split" else None
         if self.method == "lowrank" or (self.method == "hybrid" and frequent):
-            return self._solve_lowrank(A, b, hint)
+            return self._solve_lowrank(A, b, hint, lu0)
         d = A.diagonal()
         s = 1.0 / np.sqrt(d)
         As = _scaled(A, s)
@@ -212,14 +220,15 @@ class PressureSolver:
         return y * s
 
     # -- low-rank updated direct solver ------------------------------------------------------
-    def _factor(self, A):
+    def _factor(self, A, lu=None):
+        """Make ``A`` the low-rank base (``lu``: its scaled factor when already computed)."""
         t0 = time.perf_counter()
         s = 1.0 / np.sqrt(A.diagonal())
         budget = self.max_rank // 2 if self.prefetch else 0
         cap = self.max_rank + 64 + budget
         # columns A0^-1 e_v are stored as *rows* of WT (cap, n): a combination of a few of them
         # gathers contiguous rows instead of multiplying the whole (n, cap) block
-        self._base = dict(data=A.data.copy(), s=s, lu=_lu(_scaled(A, s)), rows=_rows(A),
+        self._base = dict(data=A.data.copy(), s=s, lu=_lu(_scaled(A, s)) if lu is None else lu, rows=_rows(A),
                           col_of=np.full(A.shape[0], -1, dtype=np.int64), WT=np.empty((cap, A.shape[0])),
                           ncols=0, n_pref=0, budget=budget, pref=np.zeros(A.shape[0], dtype=bool), batches=[])
         self.n_setups += 1
@@ -272,7 +281,25 @@ class PressureSolver:
             _solve_columns(base, new)
         return base["col_of"][nodes]
 
-    def _solve_lowrank(self, A, b, hint=None):
+    def _choose_by_fill(self, A):
+        """Method ``'lowrank_or_split'``: factorise ``A`` once and choose by the factor's fill.
+
+        ``'lowrank'`` (returning the factor: the first base) when the fill is at most
+        :data:`_SPLIT_FILL` entries per unknown, else ``'split'`` (returning None: that
+        factorisation is the price of the choice).
+        """
+        t0 = time.perf_counter()
+        lu = _lu(_scaled(A, 1.0 / np.sqrt(A.diagonal())))
+        self.fill = float(lu.L.nnz + lu.U.nnz) / A.shape[0]
+        if self.fill <= _SPLIT_FILL:
+            self.method = "lowrank"
+            return lu
+        self.method = "split"
+        self.n_setups += 1
+        self.seconds_setup += time.perf_counter() - t0
+        return None
+
+    def _solve_lowrank(self, A, b, hint=None, lu0=None):
         fresh = False  # whether the base was factorised from this very matrix
         if self._base is None and self._saved_base is not None:  # unpickled: the same base again
             self._restore_base(A)
@@ -280,7 +307,7 @@ class PressureSolver:
             # the latter: after a run of failed low-rank updates (each a wasted attempt plus a
             # refactorisation), factorise each matrix directly for a while before trying again
             self._direct_left = max(0, self._direct_left - 1)
-            self._factor(A)
+            self._factor(A, lu0)
             fresh = True
         for _attempt in range(2):
             status, got = self._lowrank_update(A, b, hint)
