@@ -41,12 +41,15 @@ REPO = Path(__file__).resolve().parents[1]
 RUNS = {
     "uniform3": {"coarsen": 3},
     "uniform4": {"coarsen": 4},
+    "uniform6": {"coarsen": 6},
     "graded_3_12_g0.5": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 0.5, "refine": "invaded"},
     "graded_3_12_g1": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 1.0, "refine": "invaded"},
     "graded_3_12_g0.5_lig1": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 0.5, "refine": "invaded",
                               "ligaments": 1.0},
     "graded_3_12_g0.5_lig2": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 0.5, "refine": "invaded",
                               "ligaments": 2.0},
+    "graded_3_12_g1_lig1": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 1.0, "refine": "invaded",
+                            "ligaments": 1.0},
 }
 LIG_BINS = (0, 4, 8, 12, 16, 24, 1e9)
 DIST_BINS = (0, 3, 6, 12, 24, 48, 1e9)
