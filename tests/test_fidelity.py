@@ -16,6 +16,7 @@ from porefsi.case._fidelity_model import (
     cpu_parts,
     expected_cpu,
     expected_error,
+    graded_size,
     pore_chord,
     scene_of,
 )
@@ -96,6 +97,16 @@ def test_cost_model_reproduces_the_calibration_runs(sample_scene):
         r = cal["data"]["runs"][name]
         pred = expected_cpu(sample_scene, Setting(coarsen=r["coarsen"]), cal)
         assert r["cpu_s"] / 1.6 < pred < 1.6 * r["cpu_s"], (name, pred, r["cpu_s"])
+    g = cal["data"]["graded"]  # the graded recipe's run: its size exactly (kappa's fit), its cost within 1.6x
+    r, rec = cal["data"]["runs"][g["run"]], cal["graded"]["recipe"]
+    s = Setting(coarsen=g["coarsen"], mesh="graded", refine="invaded", grading=rec["grading"],
+                coarsen_max=rec["coarsen_max_factor"] * g["coarsen"], ligaments=rec["ligaments"])
+    import dataclasses
+
+    scene = dataclasses.replace(sample_scene, injected_voxels=g["injected_voxels"])
+    assert graded_size(scene, s, cal)[0] == pytest.approx(r["n_tets"], rel=0.02)
+    assert r["cpu_s"] / 1.6 < expected_cpu(scene, s, cal) < 1.6 * r["cpu_s"]
+    assert expected_error(scene, s, cal, vs_reference=True) == pytest.approx(r["err_field"])
 
 
 def test_cost_by_stage_reproduces_the_calibration_runs(sample_scene):
