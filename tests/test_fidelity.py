@@ -16,6 +16,7 @@ from porefsi.case._fidelity_model import (
     cpu_parts,
     expected_cpu,
     expected_error,
+    graded_size,
     pore_chord,
     scene_of,
 )
@@ -48,7 +49,10 @@ def _scene(chord=8.0, shape=(120, 120, 120), steps=10, ca=1e-7, strain=1e-7):
 def test_shipped_constants_are_the_fit_of_the_shipped_data():
     cal = calibration()
     refit = fit_calibration(cal["data"])
-    for part in ("mesh", "interface", "integrator", "update", "response", "scheme", "cost"):
+    for part in ("mesh", "interface", "integrator", "update", "response", "scheme", "cost", "graded"):
+        if part == "graded" and "graded" not in cal["data"]:
+            assert "graded" not in cal
+            continue
         assert _keys(refit[part]) == _keys(cal[part]), part
         np.testing.assert_allclose(_flat(refit[part]), _flat(cal[part]), rtol=1e-6, err_msg=part)
 
@@ -93,6 +97,16 @@ def test_cost_model_reproduces_the_calibration_runs(sample_scene):
         r = cal["data"]["runs"][name]
         pred = expected_cpu(sample_scene, Setting(coarsen=r["coarsen"]), cal)
         assert r["cpu_s"] / 1.6 < pred < 1.6 * r["cpu_s"], (name, pred, r["cpu_s"])
+    g = cal["data"]["graded"]  # the graded recipe's run: its size exactly (kappa's fit), its cost within 1.6x
+    r, rec = cal["data"]["runs"][g["run"]], cal["graded"]["recipe"]
+    s = Setting(coarsen=g["coarsen"], mesh="graded", refine="invaded", grading=rec["grading"],
+                coarsen_max=rec["coarsen_max_factor"] * g["coarsen"], ligaments=rec["ligaments"])
+    import dataclasses
+
+    scene = dataclasses.replace(sample_scene, injected_voxels=g["injected_voxels"])
+    assert graded_size(scene, s, cal)[0] == pytest.approx(r["n_tets"], rel=0.02)
+    assert r["cpu_s"] / 1.6 < expected_cpu(scene, s, cal) < 1.6 * r["cpu_s"]
+    assert expected_error(scene, s, cal, vs_reference=True) == pytest.approx(r["err_field"])
 
 
 def test_cost_by_stage_reproduces_the_calibration_runs(sample_scene):
@@ -192,6 +206,72 @@ def test_finer_features_need_a_finer_mesh():
     coarse = choose(_scene(chord=12.0), case, tolerance=0.3)[0]["solid.coarsen"]
     fine = choose(_scene(chord=5.0), case, tolerance=0.3)[0]["solid.coarsen"]
     assert fine < coarse
+
+
+# ------------------------------------------------------------------------------------------
+# the graded mesh as a candidate
+# ------------------------------------------------------------------------------------------
+GRADED_CAL = {"recipe": {"fine_blocks": [2, 3, 4], "coarsen_max_factor": 4, "grading": 0.5, "ligaments": 1.0,
+                         "max_capillary_number": 1e-5}, "error": 0.1, "kappa": 40.0}
+
+
+def _graded_cal():
+    return {**calibration(), "graded": GRADED_CAL}
+
+
+def _graded_setting(cf=3):
+    return Setting(coarsen=cf, mesh="graded", refine="invaded", coarsen_max=4 * cf, grading=0.5, ligaments=1.0)
+
+
+def _with_injection(scene, voxels):
+    import dataclasses
+
+    return dataclasses.replace(scene, injected_voxels=voxels)
+
+
+def test_graded_error_is_its_fine_blocks_plus_its_own_term():
+    """Converged: E(c_f) + G; against the coarsen-3 reference at c_f = 3: G alone (same fine blocks),
+    at c_f = 2: hypot(E(2), E(3)) + G (triangle inequality); refined at every wall: the uniform mesh."""
+    cal, s = _graded_cal(), _with_injection(_scene(), 4e4)
+    g3 = _graded_setting(3)
+    assert expected_error(s, g3, cal) == pytest.approx(expected_error(s, Setting(coarsen=3), cal) + 0.1)
+    assert expected_error(s, g3, cal, vs_reference=True) == pytest.approx(0.1)
+    e2, e3 = (expected_error(s, Setting(coarsen=c), cal) for c in (2, 3))
+    assert expected_error(s, _graded_setting(2), cal, vs_reference=True) == pytest.approx(math.hypot(e2, e3) + 0.1)
+    walls = Setting(coarsen=3, mesh="graded", refine="walls")
+    assert expected_error(s, walls, cal) == expected_error(s, Setting(coarsen=3), cal)
+
+
+def test_graded_size_grows_with_the_injected_volume_and_is_capped_by_the_uniform_mesh():
+    from porefsi.case._fidelity_model import graded_size
+
+    cal, g3 = _graded_cal(), _graded_setting(3)
+    small, big = (graded_size(_with_injection(_scene(), v), g3, cal) for v in (1e4, 1e5))
+    s = _with_injection(_scene(), 1e4)
+    assert small[0] == pytest.approx(s.mesh[12][0] + 40.0 * 1e4 / 27)  # coarsest leaves + the fine region
+    assert s.mesh[12][0] < small[0] < big[0] <= s.mesh[3][0]
+    assert graded_size(_with_injection(_scene(), 1e9), g3, cal) == pytest.approx(s.mesh[3][:2])
+    assert expected_cpu(s, g3, cal) < expected_cpu(s, Setting(coarsen=3), cal)
+
+
+def test_auto_offers_the_graded_recipe_only_where_the_predicted_invasion_holds():
+    """At a low capillary number auto picks the graded recipe where it is cheaper at the tolerance (its own
+    keys set from the recipe); above the recipe's capillary limit it never offers it; a kept uniform mesh wins."""
+    cal = _graded_cal()
+    case = Case().replace(fidelity={"keep": []})
+    low = _with_injection(_scene(ca=1e-7), 2e4)
+    ch, err, _, met = choose(low, case, tolerance=0.3, cal=cal)
+    assert met and err <= 0.3 and ch["solid.mesh"] == "graded"
+    cf = ch["solid.coarsen"]
+    assert cf in (2, 3, 4) and ch["solid.coarsen_max"] == 4 * cf and ch["solid.refine"] == "invaded"
+    assert ch["solid.grading"] == 0.5 and ch["solid.ligaments"] == 1.0
+    high = _with_injection(_scene(ca=1e-4), 2e4)
+    assert all(choose(high, case, tolerance=t, cal=cal)[0]["solid.mesh"] == "uniform" for t in (0.2, 0.3, 0.6))
+    kept = Case().replace(solid={"mesh": "uniform"})
+    assert "solid.mesh" in kept.fidelity.keep
+    assert choose(low, kept, tolerance=0.3, cal=cal)[0]["solid.mesh"] == "uniform"
+    without = {k: v for k, v in calibration().items() if k != "graded"}
+    assert choose(low, case, tolerance=0.3, cal=without)[0]["solid.mesh"] == "uniform"
 
 
 # ------------------------------------------------------------------------------------------

@@ -121,11 +121,13 @@ def graded_variants(smoke: bool) -> list[dict]:
     if smoke:
         return []
     graded = {"mesh": "graded", "refine": "invaded"}
-    return [{"name": f"graded_{cf}_{cm}" + ("" if g == 0.5 else f"_g{g:g}"), "knob": "graded mesh",
-             "skip_solves": None,
-             "label": f"graded: {cf}-voxel blocks at the predicted invasion, leaves up to {cm}, grading {g:g}",
-             "overrides": {"solid": {**graded, "coarsen": cf, "coarsen_max": cm, "grading": g}}}
-            for cf, cm, g in ((3, 12, 0.5), (3, 12, 1.0), (2, 16, 0.5))]
+    return [{"name": f"graded_{cf}_{cm}" + ("" if g == 0.5 else f"_g{g:g}") + (f"_lig{lig:g}" if lig else ""),
+             "knob": "graded mesh", "skip_solves": None,
+             "label": f"graded: {cf}-voxel blocks at the predicted invasion, leaves up to {cm}, grading {g:g}"
+                      + (f", ligaments < {lig:g} loaded chords fine" if lig else ""),
+             "overrides": {"solid": {**graded, "coarsen": cf, "coarsen_max": cm, "grading": g, "ligaments": lig}}}
+            for cf, cm, g, lig in ((3, 12, 0.5, 0.0), (3, 12, 1.0, 0.0), (2, 16, 0.5, 0.0), (3, 12, 0.5, 1.0),
+                                   (2, 8, 0.5, 1.0), (4, 16, 0.5, 1.0))]
 
 
 def linear_variants(smoke: bool) -> list[dict]:

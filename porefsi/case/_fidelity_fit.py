@@ -14,7 +14,7 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
-__all__ = ["fit_calibration", "fit_mesh_law", "fit_direct_solid"]
+__all__ = ["fit_calibration", "fit_mesh_law", "fit_direct_solid", "fit_graded"]
 
 
 def fit_mesh_law(chord: float, coarsen, err_vs_ref, c_ref: int, ref_vs_finer: float,
@@ -91,7 +91,7 @@ def fit_calibration(data: dict) -> dict:
     cost["amg_per_dof_step"] = _stage(amg, "solid") / (amg["n_dofs"] * steps)
     cost["adaptive_fluid_extra_s"] = max(_stage(runs["adaptive"], "fluid") - _stage(base, "fluid"), 0.0)
     ad = data["adaptive_drainage"]
-    return {
+    out = {
         "mesh": {"A": A, "p": p, "reference_coarsen": data["reference"]["coarsen"]},
         "interface": {"traction": 0.0, "hull": hull},
         "integrator": {"tdg_left": runs["left"]["diff_vs_baseline"]},
@@ -105,3 +105,19 @@ def fit_calibration(data: dict) -> dict:
                                                                            strict=True)]}},
         "cost": cost,
     }
+    if "graded" in data:
+        out["graded"] = fit_graded(data["graded"], runs)
+    return out
+
+
+def fit_graded(g: dict, runs: dict) -> dict:
+    """The graded mesh's error term and size constant from its calibration run.
+
+    ``g["run"]``: a graded run whose fine block is the reference's (its error against the reference
+    is then the error of its coarse leaves alone); ``kappa``: its tetrahedra beyond the uniform mesh
+    of its largest leaf per injected voxel / fine block^3.
+    """
+    r = runs[g["run"]]
+    cf = g["coarsen"]
+    return {"recipe": dict(g["recipe"]), "error": float(r["err_field"]),
+            "kappa": float((r["n_tets"] - g["n_tets_coarsest"]) / (g["injected_voxels"] / cf ** 3))}

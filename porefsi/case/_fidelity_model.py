@@ -42,7 +42,8 @@ from porefsi.flow.fluids import Fluids
 from porefsi.solid.footprint import DIRECT_MAX_DOFS
 from porefsi.solid.mesh import MIN_BLOCKS, MIN_PORE_KEPT, mesh_size
 
-__all__ = ["Scene", "Setting", "scene_of", "calibration", "expected_error", "expected_cpu", "cpu_parts", "pore_chord"]
+__all__ = ["Scene", "Setting", "scene_of", "calibration", "expected_error", "expected_cpu", "cpu_parts", "pore_chord",
+           "graded_size"]
 
 CALIBRATION_FILE = "fidelity_calibration.json"
 #: Coarsenings ``auto`` considers; of them those whose blocks tile the image (every size a multiple),
@@ -70,6 +71,11 @@ class Setting:
     scheme: str = "exact"
     response: str = "nonlinear"
     order: int = 1
+    mesh: str = "uniform"
+    coarsen_max: int = 16
+    grading: float = 1.0
+    refine: str = "walls"
+    ligaments: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,6 +105,9 @@ class Scene:
         coarsening -> (n_tets, n_dofs, porosity kept, peak bytes, auto may choose it).
     memory_bytes : float
         The machine's physical memory (candidates above it are infeasible).
+    injected_voxels : float
+        Twice the injected volume in voxels (``2 rate t_end / h^3``): the pore volume a graded
+        mesh refined at the predicted invasion keeps fine.
     """
 
     shape: tuple
@@ -113,6 +122,7 @@ class Scene:
     n_events: float
     mesh: dict
     memory_bytes: float = math.inf
+    injected_voxels: float = 0.0
 
     def feasible(self, coarsen: int) -> bool:
         """Whether ``auto`` may choose ``coarsen`` (meshable, tiling the image, fitting in memory)."""
@@ -178,7 +188,8 @@ def scene_of(image, case, cal: dict | None = None, extra_coarsen=()) -> Scene:
     n_steps = max(1, math.ceil(case.drainage.t_end / case.coupling.exchange_dt - 1e-9))
     return Scene(tuple(int(n) for n in image.shape), int(image.phases.size), n_pore, lam, vs, n_steps,
                  fl.capillary_number(case.drainage.rate, face), entry / case.solid.E, n_pores, n_events,
-                 _mesh_table(image, (case.solid.coarsen, *extra_coarsen)), _physical_memory())
+                 _mesh_table(image, (case.solid.coarsen, *extra_coarsen)), _physical_memory(),
+                 min(2.0 * case.drainage.rate * case.drainage.t_end / vs ** 3, float(n_pore)))
 
 
 def _mesh_error(scene: Scene, coarsen: int, cal: dict) -> float:
@@ -199,6 +210,9 @@ def expected_error(scene: Scene, s: Setting, cal: dict | None = None, *, vs_refe
     """
     cal = calibration() if cal is None else cal
     e = _mesh_error(scene, s.coarsen, cal)
+    own = 0.0  # the graded mesh's own term: its coarse leaves away from the load
+    if _graded(s):
+        own = cal.get("graded", {}).get("error", 0.0)
     e += cal["interface"][s.interface]
     if s.integrator == "tdg" and s.load_rule == "left":
         e += cal["integrator"]["tdg_left"]
@@ -207,8 +221,37 @@ def expected_error(scene: Scene, s: Setting, cal: dict | None = None, *, vs_refe
     if s.scheme == "adaptive":
         e += _interp_log_ca(scene, cal["scheme"]["adaptive"], "error")
     if vs_reference:
-        e = math.hypot(e, _mesh_error(scene, cal["mesh"]["reference_coarsen"], cal))
-    return float(e)
+        c_ref = cal["mesh"]["reference_coarsen"]
+        if _graded(s) and s.coarsen == c_ref:  # its fine blocks are the reference's own mesh there
+            return float(e - _mesh_error(scene, s.coarsen, cal) + own)
+        e = math.hypot(e, _mesh_error(scene, c_ref, cal))
+    return float(e + own)
+
+
+def _graded(s: Setting) -> bool:
+    """Whether ``s`` is a graded mesh refined at the predicted invasion.
+
+    Refined at every wall it is the uniform mesh of its fine block to within a percent of the
+    nodes (docs/solid.md), and modelled as that.
+    """
+    return s.mesh == "graded" and s.refine == "invaded"
+
+
+def graded_size(scene: Scene, s: Setting, cal: dict | None = None) -> tuple[float, float]:
+    """Expected (n_tets, n_dofs) of a graded mesh: its coarsest leaves everywhere plus the fine region.
+
+    The fine region grows with the pore volume it resolves (``scene.injected_voxels``): tetrahedra
+    = the uniform mesh of ``coarsen_max`` + ``kappa * injected_voxels / coarsen^3`` (``kappa``
+    measured on the calibration's graded run), at most the uniform mesh of ``coarsen``; dofs in
+    the uniform mesh's proportion.
+    """
+    cal = calibration() if cal is None else cal
+    n_tets, n_dofs = scene.mesh[s.coarsen][:2]
+    if not _graded(s) or "graded" not in cal:
+        return float(n_tets), float(n_dofs)
+    big = max((c for c in scene.mesh if c <= s.coarsen_max), default=s.coarsen)
+    tets = min(float(n_tets), scene.mesh[big][0] + cal["graded"]["kappa"] * scene.injected_voxels / s.coarsen ** 3)
+    return tets, n_dofs * tets / max(n_tets, 1)
 
 
 def _solid_cpu(n_dofs: float, n_steps: int, cal: dict) -> float:
@@ -226,7 +269,7 @@ def cpu_parts(scene: Scene, s: Setting, cal: dict | None = None) -> dict:
     """Expected CPU seconds of setting ``s`` on ``scene`` by stage: set-up, solid, stress, update, fluid."""
     cal = calibration() if cal is None else cal
     c = cal["cost"]
-    n_tets, n_dofs = scene.mesh[s.coarsen][:2]
+    n_tets, n_dofs = graded_size(scene, s, cal)
     if s.order == 2:
         n_dofs *= c["p2_dofs_factor"]
     solid = _solid_cpu(n_dofs, scene.n_steps, cal)

@@ -115,7 +115,8 @@ class OutputConfig:
 #: file's own value of one of them wins over the preset: it is listed in ``fidelity.keep``.
 FIDELITY_KEYS = ("solid.coarsen", "interface.method", "interface.n_test_points", "coupling.integrator",
                  "coupling.tdg_iterations", "coupling.tdg_load_rule", "network.update", "drainage.scheme",
-                 "solid.response")
+                 "solid.response", "solid.mesh", "solid.coarsen_max", "solid.grading", "solid.refine",
+                 "solid.ligaments")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -32,17 +32,20 @@ from porefsi.case._fidelity_model import Scene, Setting, calibration, expected_c
 from porefsi.case.config import FIDELITY_KEYS, Case, case_from_dict, case_to_dict, case_to_toml
 
 __all__ = ["PRESETS", "FidelityChoice", "resolve_fidelity", "fidelity_summary", "candidates", "choose",
-           "COST_BIN"]
+           "COST_BIN", "graded_recipe"]
 
 #: Fixed presets: the settings each chooses (a case file's own keys win).
 PRESETS: dict[str, dict[str, object]] = {
     "fast": {"solid.coarsen": 6, "interface.method": "traction", "coupling.integrator": "static",
-             "network.update": "geometric", "drainage.scheme": "exact", "solid.response": "nonlinear"},
+             "network.update": "geometric", "drainage.scheme": "exact", "solid.response": "nonlinear",
+             "solid.mesh": "uniform"},
     "accurate": {"solid.coarsen": 3, "interface.method": "traction", "coupling.integrator": "static",
-                 "network.update": "geometric", "drainage.scheme": "exact", "solid.response": "nonlinear"},
+                 "network.update": "geometric", "drainage.scheme": "exact", "solid.response": "nonlinear",
+             "solid.mesh": "uniform"},
     "paper": {"solid.coarsen": 5, "interface.method": "hull", "interface.n_test_points": 800,
               "coupling.integrator": "tdg", "coupling.tdg_iterations": 2, "coupling.tdg_load_rule": "left",
-              "network.update": "reextract", "drainage.scheme": "exact", "solid.response": "nonlinear"},
+              "network.update": "reextract", "drainage.scheme": "exact", "solid.response": "nonlinear",
+             "solid.mesh": "uniform"},
 }
 
 #: Width of the cost bins of the tolerance rule (relative): costs within one bin are ties.
@@ -56,7 +59,10 @@ KNOB_VALUES: dict[str, tuple] = {
     "network.update": ("geometric", "none", "reextract"),
     "drainage.scheme": ("exact", "adaptive"),
     "solid.response": ("nonlinear", "auto"),
+    "solid.mesh": ("uniform", "graded"),
 }
+#: The graded mesh's own keys: set with ``solid.mesh = "graded"`` from the calibrated recipe.
+GRADED_KEYS = ("solid.coarsen_max", "solid.grading", "solid.refine", "solid.ligaments")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -115,6 +121,8 @@ class FidelityChoice:
 
 def _shown(key: str, settings: dict) -> bool:
     """Whether ``key`` matters with ``settings`` (test points only with the hull, TDG keys only with TDG)."""
+    if key in GRADED_KEYS:
+        return settings["solid.mesh"] == "graded"
     if key == "interface.n_test_points":
         return settings["interface.method"] == "hull"
     if key.startswith("coupling.tdg_"):
@@ -143,14 +151,48 @@ def _setting(case: Case, values: dict) -> Setting:
                    n_test_points=int(get("interface.n_test_points")), integrator=get("coupling.integrator"),
                    tdg_iterations=int(get("coupling.tdg_iterations")), load_rule=get("coupling.tdg_load_rule"),
                    update=get("network.update"), scheme=get("drainage.scheme"), response=get("solid.response"),
-                   order=int(case.solid.order))
+                   order=int(case.solid.order), mesh=get("solid.mesh"), coarsen_max=int(get("solid.coarsen_max")),
+                   grading=float(get("solid.grading")), refine=get("solid.refine"),
+                   ligaments=float(get("solid.ligaments")))
 
 
-def candidates(case: Case) -> list[dict]:
-    """Every combination of :data:`KNOB_VALUES` with the case's kept keys fixed (in preference order)."""
+def candidates(case: Case, cal: dict | None = None) -> list[dict]:
+    """Every combination of :data:`KNOB_VALUES` with the case's kept keys fixed (in preference order).
+
+    A graded mesh comes with the calibrated recipe's own keys (:func:`graded_recipe`, kept keys
+    win) and only at the recipe's fine block sizes.
+    """
     keep = set(case.fidelity.keep)
     axes = [((_get(case, k),) if k in keep else vals) for k, vals in KNOB_VALUES.items()]
-    return [dict(zip(KNOB_VALUES, combo, strict=True)) for combo in itertools.product(*axes)]
+    out = []
+    for combo in itertools.product(*axes):
+        cand = dict(zip(KNOB_VALUES, combo, strict=True))
+        if cand["solid.mesh"] == "graded" and "solid.mesh" not in keep:
+            recipe = graded_recipe(int(cand["solid.coarsen"]), cal)
+            if recipe is None:
+                continue
+            cand.update({k: v for k, v in recipe.items() if k not in keep})
+        out.append(cand)
+    return out
+
+
+def graded_recipe(coarsen: int, cal: dict | None = None) -> dict | None:
+    """The graded mesh ``auto`` offers at fine block ``coarsen`` (None: not at this block size).
+
+    Refined at the predicted invasion, leaves up to ``coarsen_max_factor`` fine blocks, the
+    calibrated grading and ligament rule (``fidelity_calibration.json``, ``graded.recipe``).
+    """
+    r = (calibration() if cal is None else cal).get("graded", {}).get("recipe")
+    if r is None or coarsen not in r["fine_blocks"]:
+        return None
+    return {"solid.coarsen_max": int(r["coarsen_max_factor"] * coarsen), "solid.grading": float(r["grading"]),
+            "solid.refine": "invaded", "solid.ligaments": float(r["ligaments"])}
+
+
+def _graded_allowed(scene: Scene, s: Setting, cal: dict) -> bool:
+    """A graded candidate's refined region is a prediction: only up to the capillary number where it held."""
+    return s.mesh != "graded" or ("graded" in cal
+                                  and scene.capillary_number <= cal["graded"]["recipe"]["max_capillary_number"])
 
 
 def choose(scene: Scene, case: Case, tolerance: float | None = None, budget_s: float | None = None,
@@ -165,9 +207,11 @@ def choose(scene: Scene, case: Case, tolerance: float | None = None, budget_s: f
     """
     cal = calibration() if cal is None else cal
     scored = []
-    for i, cand in enumerate(candidates(case)):
+    for i, cand in enumerate(candidates(case, cal)):
         s = _setting(case, cand)
         if not (scene.feasible(s.coarsen) or "solid.coarsen" in case.fidelity.keep):
+            continue
+        if "solid.mesh" not in case.fidelity.keep and not _graded_allowed(scene, s, cal):
             continue
         scored.append((expected_error(scene, s, cal), expected_cpu(scene, s, cal), i, cand))
     if not scored:
