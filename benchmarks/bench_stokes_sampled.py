@@ -39,9 +39,17 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from porefsi.image import VoxelImage, load_sample, read_image  # noqa: E402
-from porefsi.stokes import extrapolated_permeability, sampled_permeability, voxel_permeability  # noqa: E402
+from porefsi.stokes import (  # noqa: E402
+    extrapolated_permeability,
+    richardson,
+    sampled_permeability,
+    voxel_permeability,
+)
 from porefsi.stokes.sampled import block_side, choose_blocks, pool_blocks  # noqa: E402
 
+#: The shared data folder next to the checkout (or next to the worktrees' folder).
+DATA = next((d / "shared" / "data" for d in ROOT.parents[:2] if (d / "shared" / "data").is_dir()),
+            ROOT.parent / "shared" / "data")
 DNS = {"x": 1360.0, "y": 1304.0, "z": 1193.0}
 BEREA_VOXEL = 5.345e-6
 
@@ -170,13 +178,21 @@ def validate(args) -> list:
         s = sampled_permeability(img, args.axis, levels=levels, blocks=args.blocks, block=args.block,
                                  native=whole.results[0], rtol=args.rtol)
         c_s = time.process_time() - c0
+        k_blocks = [b.k_mD for b in s.blocks]
+        at_whole = pool_blocks([b.origin for b in s.blocks], s.blocks[0].side, k_blocks, levels, order=whole.order)[0]
+        w_vals = whole.extrapolation.values
+        at_sampled = richardson(levels, w_vals, order=s.order).value / w_vals[0]
         row = {"case": name, "axis": args.axis, "porosity": img.porosity, "levels": list(levels),
                "native_mD": whole.results[0].k_mD, "whole_k_inf_mD": whole.k_mD, "whole_gci_mD": whole.uncertainty_mD,
                "whole_order": whole.order, "whole_factor": whole.k_mD / whole.results[0].k_mD,
                "sampled_mD": s.k_mD, "sampled_unc_mD": s.uncertainty_mD, "sampled_factor": s.factor,
                "sampled_order": s.order, "se": s.factor_se, "gci": s.factor_gci, "blocks": len(s.blocks),
                "side": s.blocks[0].side, "block_factors": [round(b.factor, 4) for b in s.blocks],
-               "sampled_vs_whole": s.k_mD / whole.k_mD - 1, "cpu_whole_s": round(c_whole, 1),
+               "sampled_vs_whole": s.k_mD / whole.k_mD - 1, "whole_levels_mD": list(w_vals),
+               "whole_observed_order": whole.extrapolation.observed_order,
+               "pooled_levels_mD": list(s.pooled.values), "sampled_observed_order": s.pooled.observed_order,
+               "sampled_factor_at_whole_order": at_whole, "whole_factor_at_sampled_order": at_sampled,
+               "cpu_whole_s": round(c_whole, 1),
                "cpu_sampled_s": round(c_s, 1), "load": _load()}
         rows.append(row)
         print(json.dumps(row), flush=True)
@@ -190,7 +206,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="study", required=True)
     b = sub.add_parser("blocks")
-    b.add_argument("--image", default=str(ROOT.parent / "shared" / "data" / "berea_icl_400.npz"))
+    b.add_argument("--image", default=str(DATA / "berea_icl_400.npz"))
     b.add_argument("--axis", default="x")
     b.add_argument("--levels", default="1,2,3")
     b.add_argument("--blocks", type=int, default=8)
@@ -210,7 +226,7 @@ def main(argv=None):
     v.add_argument("--blocks", type=int, default=8)
     v.add_argument("--block", type=int, default=None)
     v.add_argument("--rtol", type=float, default=1e-6)
-    v.add_argument("--image", default=str(ROOT.parent / "shared" / "data" / "berea_icl_400.npz"))
+    v.add_argument("--image", default=str(DATA / "berea_icl_400.npz"))
     v.add_argument("--out", default=None)
     args = ap.parse_args(argv)
     return {"blocks": run_blocks, "summarise": summarise, "validate": validate}[args.study](args)
