@@ -21,8 +21,8 @@ from porefsi.cli._common import (
     emit,
     image_from_args,
     positive_float,
-    positive_int,
 )
+from porefsi.cli._voxel import add_voxel_args, reject_voxel_options, run_voxel_permeability
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import AXES
 from porefsi.network.network import CONDUCTANCE_MODELS, Network
@@ -261,8 +261,8 @@ def run_extract(args: argparse.Namespace) -> int:
 def run_permeability(args: argparse.Namespace) -> int:
     """Run ``porefsi permeability`` (``--method network``, the default, or ``--method voxel``)."""
     if getattr(args, "method", "network") == "voxel":
-        return _run_voxel_permeability(args)
-    _reject_voxel_options(args)
+        return run_voxel_permeability(args, EXTRACT_OPTIONS, _SAMPLE)
+    reject_voxel_options(args)
     from porefsi.flow.permeability import absolute_permeability
 
     t0 = time.perf_counter()
@@ -288,142 +288,6 @@ def run_permeability(args: argparse.Namespace) -> int:
     summary["seconds"] = time.perf_counter() - t0
     emit(summary, args.json)
     return 0
-
-
-#: ``--method voxel`` options and their defaults (a value other than these with --method network is an error).
-_VOXEL_DEFAULTS = {"boundary": "pressure", "buffer": 2, "coarsen": 1, "rtol": 1e-6, "maxiter": 3000, "refine": 1,
-                   "extrapolate": False, "wall": None}
-
-
-def _reject_voxel_options(args: argparse.Namespace) -> None:
-    given = [f"--{k}" for k, v in _VOXEL_DEFAULTS.items() if getattr(args, k, v) != v]
-    if given:
-        raise InputError(f"{' '.join(given)}: voxel-solver options, for --method voxel only; add it or drop them")
-
-
-def _run_voxel_permeability(args: argparse.Namespace) -> int:
-    """``porefsi permeability --method voxel``: Stokes flow on the image's pore voxels."""
-    from porefsi.network.convert import is_network_file
-
-    t0, c0 = time.perf_counter(), time.process_time()
-    source = getattr(args, "source", None)
-    if source is not None and is_network_file(source):
-        raise InputError(f"--method voxel needs an image, but {source} is a network file; pass the image it came from")
-    ext_opts = [f"--{k.replace('_', '-')}" for k in EXTRACT_OPTIONS if getattr(args, k, None) is not None]
-    ext_opts += ["--keep-isolated"] if getattr(args, "keep_isolated", False) else []
-    if ext_opts:
-        raise InputError(f"{' '.join(ext_opts)}: network-extraction options, unused by --method voxel; drop them")
-    from porefsi.image.ops import downsample
-    from porefsi.stokes import voxel_permeability
-
-    image = image_from_args(args, source)
-    if image.porosity == 0.0:
-        raise InputError(
-            f"image {source or _SAMPLE} has no pore voxels (all solid); porefsi reads 1 as pore: "
-            "check --invert, --threshold or --pore-value"
-        )
-    work = downsample(image, args.coarsen) if args.coarsen > 1 else image
-    kw = dict(boundary=args.boundary, buffer=args.buffer, mirror=args.boundary == "periodic", rtol=args.rtol,
-              maxiter=args.maxiter)
-    if getattr(args, "wall", None) is not None:
-        kw["wall"] = args.wall
-    ext = None
-    if args.extrapolate:
-        from porefsi.stokes import extrapolated_permeability
-
-        top = args.refine if args.refine >= 2 else 3
-        ext = extrapolated_permeability(work, args.axis, levels=range(max(1, top - 2), top + 1), **kw)
-        res = ext.results[-1]
-    else:
-        res = voxel_permeability(work, args.axis, refine=args.refine, **kw)
-    summary = {
-        "permeability_m2": res.k_m2 if ext is None else ext.k_m2,
-        "permeability_mD": res.k_mD if ext is None else ext.k_mD,
-        "axis": res.axis,
-        "method": "voxel",
-        "source": str(source) if source is not None else _SAMPLE,
-        "shape": list(image.shape),
-        "voxel_size_m": image.voxel_size,
-        "porosity": image.porosity,
-        "coarsen": args.coarsen,
-        "solved_shape": list(work.shape),
-        "refine": res.info["refine"],
-        "solved_voxel_size_m": work.voxel_size / res.info["refine"],
-        "connected_porosity": res.connected_porosity,
-        "boundary": res.boundary,
-        "wall": res.info["wall"],
-        "buffer": res.info["buffer"],
-        "length_m": res.length,
-        "area_m2": res.area,
-        "n_unknowns": res.n_unknowns,
-        "iterations": res.iterations,
-        "residual": res.residual,
-        "flux_spread": res.flux_spread,
-        "memory_estimate_bytes": res.memory_bytes,
-        "seconds_solve": res.seconds,
-        "cpu_seconds": time.process_time() - c0,
-    }
-    if ext is not None:
-        e = ext.extrapolation
-        summary["extrapolation"] = {
-            "levels": list(e.levels), "permeability_mD_levels": list(e.values),
-            "permeability_mD_extrapolated": e.value, "uncertainty_mD": e.uncertainty, "order": e.order,
-            "order_observed": e.order_observed, "observed_order": e.observed_order,
-            "error_finest": e.error_at(e.levels[-1]), "error_unrefined": ext.native_error,
-            "iterations_levels": [r.iterations for r in ext.results],
-        }
-    summary["seconds"] = time.perf_counter() - t0
-    emit(summary, args.json)
-    return 0
-
-
-def _add_voxel_args(p: argparse.ArgumentParser) -> None:
-    d = _VOXEL_DEFAULTS
-    p.add_argument("--method", choices=("network", "voxel"), default="network",
-                   help="network: extract the pore network and solve Hagen-Poiseuille conduits (default); "
-                   "voxel: solve Stokes flow on the image's pore voxels (the reference; slower, images only)")
-    g = p.add_argument_group("voxel options (--method voxel; see porefsi.stokes.voxel_permeability)")
-    g.add_argument("--boundary", choices=("pressure", "periodic"), default=d["boundary"],
-                   help="pressure: reservoirs at two pressures beyond --buffer fluid layers, side faces no-slip "
-                   "(default); periodic: the image plus its mirror image along --axis, driven by a body force")
-    g.add_argument("--buffer", type=_non_negative_int, default=d["buffer"], metavar="LAYERS",
-                   help=f"fluid layers added at inlet and outlet (--boundary pressure); default {d['buffer']}")
-    g.add_argument("--coarsen", type=positive_int, default=d["coarsen"], metavar="F",
-                   help="solve on the image coarsened F times (block average, pore if >= half pore; "
-                   "porefsi.image.downsample): 8x fewer unknowns per factor 2; default 1 (full resolution)")
-    g.add_argument("--refine", type=positive_int, default=d["refine"], metavar="N",
-                   help="solve on the image refined N times (every voxel split into N^3; the same staircase, "
-                   "a finer grid: 8x the unknowns per factor 2; the memory is checked first); default 1")
-    g.add_argument("--extrapolate", action="store_true",
-                   help="solve at refinements N-2..N (N = --refine, default 3; at least 1) and report the "
-                   "Richardson-extrapolated k with the observed order and the discretisation error")
-    g.add_argument("--wall", choices=("channel", "ghost"), default=d["wall"],
-                   help="tangential no-slip closure: channel (exact for plane channels of any width in voxels; "
-                   "the default) or ghost (reflection u_ghost = -u, the earlier scheme; 1.5x the flux of a "
-                   "2-voxel channel)")
-    g.add_argument("--rtol", type=_fraction_open, default=d["rtol"], metavar="TOL",
-                   help=f"relative residual reduction at which the solver stops; default {d['rtol']:g}")
-    g.add_argument("--maxiter", type=positive_int, default=d["maxiter"], metavar="N",
-                   help=f"solver iteration limit; default {d['maxiter']}")
-
-
-def _non_negative_int(text: str) -> int:
-    """Argparse type: a whole number >= 0."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise _ArgumentError(f"expected a whole number >= 0, got {text!r}") from None
-    if v < 0:
-        raise _ArgumentError(f"expected a whole number >= 0, got {text!r}")
-    return v
-
-
-def _fraction_open(text: str) -> float:
-    """Argparse type: a number in (0, 1)."""
-    x = positive_float(text)
-    if x >= 1:
-        raise _ArgumentError(f"expected a number in (0, 1), got {text!r}")
-    return x
 
 
 def register(subparsers) -> None:
@@ -457,6 +321,6 @@ def register(subparsers) -> None:
         "Stokes flow on the image's pore voxels.",
     )
     add_network_args(q)
-    _add_voxel_args(q)
+    add_voxel_args(q)
     q.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     q.set_defaults(func=run_permeability)

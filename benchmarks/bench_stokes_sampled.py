@@ -1,0 +1,236 @@
+"""Benchmark: the sampled defect correction of the voxel Stokes permeability (porefsi.stokes.sampled).
+
+Two studies:
+
+* ``blocks``: the block factors of one image along one axis, one JSON line per block appended to
+  ``--out`` as it finishes (a rerun skips the blocks already there, so a long study can be split
+  into jobs under ``--time-limit``), then ``--summarise`` pools them with a native k
+  (``--native`` mD, or ``--native-json`` with a ``k_mD`` per axis, e.g.
+  cases/speed_accuracy/reference/berea400_voxel.json: the 400^3 native solves, ~25 CPU-min each,
+  are reused, not re-run)::
+
+      flock /work/wt/heavy.lock python benchmarks/bench_stokes_sampled.py blocks \\
+          --image ../shared/data/berea_icl_400.npz --axis x,y,z --out berea400_blocks.jsonl --time-limit 1400
+      python benchmarks/bench_stokes_sampled.py summarise berea400_blocks.jsonl \\
+          --native-json cases/speed_accuracy/reference/berea400_voxel.json
+
+* ``validate``: on images whose whole-image refinement fits, the sampled estimate against the
+  whole-image Richardson value at the same levels (a convergence check of the estimator, not an
+  accuracy check)::
+
+      python benchmarks/bench_stokes_sampled.py validate --cases blobs,spheres,berea,sample --levels 1,2
+
+Prints the CPU seconds and the load average next to every number.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from porefsi.image import VoxelImage, load_sample, read_image  # noqa: E402
+from porefsi.stokes import (  # noqa: E402
+    extrapolated_permeability,
+    richardson,
+    sampled_permeability,
+    voxel_permeability,
+)
+from porefsi.stokes.sampled import block_side, choose_blocks, pool_blocks  # noqa: E402
+
+#: The shared data folder next to the checkout (or next to the worktrees' folder).
+DATA = next((d / "shared" / "data" for d in ROOT.parents[:2] if (d / "shared" / "data").is_dir()),
+            ROOT.parent / "shared" / "data")
+DNS = {"x": 1360.0, "y": 1304.0, "z": 1193.0}
+BEREA_VOXEL = 5.345e-6
+
+
+def _load() -> str:
+    return open("/proc/loadavg").read().split()[0] if Path("/proc/loadavg").exists() else "?"
+
+
+def _levels(text: str) -> tuple:
+    return tuple(int(v) for v in text.split(","))
+
+
+def _done(out: Path) -> set:
+    """(axis, origin, levels, side) of the blocks already in ``out``."""
+    if not out.exists():
+        return set()
+    rows = [json.loads(line) for line in out.read_text().splitlines() if line.strip()]
+    return {(r["axis"], tuple(r["origin"]), tuple(r["levels"]), r["side"]) for r in rows}
+
+
+def run_blocks(args) -> None:
+    """Solve the blocks of one image along ``args.axis`` (comma-separated axes are interleaved block by
+    block), appending one JSON line per block and axis to ``args.out``; blocks already there are skipped."""
+    image = read_image(args.image)
+    levels = _levels(args.levels)
+    axes = args.axis.split(",")
+    plan = {}
+    for axis in axes:
+        side = args.block or block_side(image.shape, image.porosity, levels[-1], "xyz".index(axis), 2)
+        plan[axis] = (side, choose_blocks(image.pore, "xyz".index(axis), args.blocks, side))
+    out = Path(args.out)
+    done = _done(out)
+    t0 = time.perf_counter()
+    for i in range(args.blocks):
+        for axis in axes:
+            side, chosen = plan[axis]
+            if i >= len(chosen) or (axis, tuple(chosen[i][0]), levels, side) in done:
+                continue
+            if args.time_limit and time.perf_counter() - t0 > args.time_limit:
+                print("time limit reached: rerun to continue", flush=True)
+                return
+            row = _solve_block(image, axis, chosen[i], side, levels, args.rtol)
+            row["image"] = str(args.image)
+            with out.open("a") as fh:
+                fh.write(json.dumps(row) + "\n")
+            print(json.dumps(row), flush=True)
+
+
+def _solve_block(image, axis, chosen, side, levels, rtol) -> dict:
+    (o, phi), c0, ks, its = chosen, time.process_time(), [], []
+    sub = VoxelImage(np.ascontiguousarray(image.phases[o[0]:o[0] + side, o[1]:o[1] + side, o[2]:o[2] + side]),
+                     image.voxel_size)
+    for f in levels:
+        r = voxel_permeability(sub, axis, refine=f, rtol=rtol)
+        ks.append(r.k_mD)
+        its.append(r.iterations)
+    return {"axis": axis, "origin": list(o), "side": side, "levels": list(levels), "connected_porosity": phi,
+            "k_mD": ks, "iterations": its, "rtol": rtol, "cpu_s": round(time.process_time() - c0, 1),
+            "load": _load(), "wall": r.info["wall"]}
+
+
+def summarise(args) -> dict:
+    """Pool the blocks of ``args.out`` per axis and correct the native k."""
+    rows = [json.loads(line) for line in Path(args.path).read_text().splitlines() if line.strip()]
+    native = {}
+    if args.native_json:
+        native = json.loads(Path(args.native_json).read_text())["k_mD"]
+    summary = {}
+    for axis in sorted({r["axis"] for r in rows}):
+        rs = [r for r in rows if r["axis"] == axis]
+        levels = rs[0]["levels"]
+        factor, se, gci, pooled, blocks = pool_blocks([r["origin"] for r in rs], rs[0]["side"],
+                                                      [r["k_mD"] for r in rs], levels)
+        unc = math.hypot(2 * se, gci)
+        k1 = native.get(axis, args.native)
+        s = {"blocks": len(rs), "side": rs[0]["side"], "levels": levels, "factor": factor, "se": se, "gci": gci,
+             "order": pooled.order, "order_observed": pooled.order_observed,
+             "block_factors": [round(b.factor, 4) for b in blocks],
+             "block_k1_mD": [round(b.k_mD[0], 1) for b in blocks], "cpu_s": sum(r["cpu_s"] for r in rs)}
+        if k1:
+            s.update(native_mD=k1, k_mD=factor * k1, uncertainty_mD=unc * k1)
+            if axis in DNS and "berea" in rs[0]["image"]:
+                s["vs_dns_axis"] = factor * k1 / DNS[axis]
+        summary[axis] = s
+        print(axis, json.dumps(s), flush=True)
+    ks = [s["k_mD"] for s in summary.values() if "k_mD" in s]
+    if len(ks) == 3:
+        mean = sum(ks) / 3
+        unc = math.sqrt(sum(s["uncertainty_mD"] ** 2 for s in summary.values())) / 3
+        summary["mean"] = {"k_mD": mean, "uncertainty_mD": unc, "vs_dns_mean": mean / 1286.0,
+                           "vs_dns_range": [(mean - unc) / 1286.0, (mean + unc) / 1286.0]}
+        print("mean", json.dumps(summary["mean"]), flush=True)
+    return summary
+
+
+def _synthetic(name: str, n: int):
+    from bench_network_accuracy import blobs, sphere_pack
+
+    if name == "blobs":
+        return VoxelImage(blobs(n=n, porosity=0.30).astype(np.uint8), BEREA_VOXEL)
+    return VoxelImage(sphere_pack(n=n, porosity=0.35, r_mean=6.0).astype(np.uint8), BEREA_VOXEL)
+
+
+def _validation_image(case: str, n: int, image_path: str):
+    if case in ("blobs", "spheres"):
+        return f"{case} {n}^3", _synthetic(case, n)
+    if case == "sample":
+        img = load_sample()
+        return f"built-in sample {img.shape[0]}^3", img
+    lo = 150
+    img = read_image(image_path)
+    sub = np.ascontiguousarray(img.phases[lo:lo + n, lo:lo + n, lo:lo + n])
+    return f"Berea 400^3 crop {n}^3 @({lo},{lo},{lo})", VoxelImage(sub, img.voxel_size)
+
+
+def validate(args) -> list:
+    """Sampled estimate against whole-image Richardson on images where the whole refinement fits."""
+    rows = []
+    levels = _levels(args.levels)
+    for case in args.cases.split(","):
+        name, img = _validation_image(case, args.n, args.image)
+        c0 = time.process_time()
+        whole = extrapolated_permeability(img, args.axis, levels=levels, rtol=args.rtol)
+        c_whole = time.process_time() - c0
+        c0 = time.process_time()
+        s = sampled_permeability(img, args.axis, levels=levels, blocks=args.blocks, block=args.block,
+                                 native=whole.results[0], rtol=args.rtol)
+        c_s = time.process_time() - c0
+        k_blocks = [b.k_mD for b in s.blocks]
+        at_whole = pool_blocks([b.origin for b in s.blocks], s.blocks[0].side, k_blocks, levels, order=whole.order)[0]
+        w_vals = whole.extrapolation.values
+        at_sampled = richardson(levels, w_vals, order=s.order).value / w_vals[0]
+        row = {"case": name, "axis": args.axis, "porosity": img.porosity, "levels": list(levels),
+               "native_mD": whole.results[0].k_mD, "whole_k_inf_mD": whole.k_mD, "whole_gci_mD": whole.uncertainty_mD,
+               "whole_order": whole.order, "whole_factor": whole.k_mD / whole.results[0].k_mD,
+               "sampled_mD": s.k_mD, "sampled_unc_mD": s.uncertainty_mD, "sampled_factor": s.factor,
+               "sampled_order": s.order, "se": s.factor_se, "gci": s.factor_gci, "blocks": len(s.blocks),
+               "side": s.blocks[0].side, "block_factors": [round(b.factor, 4) for b in s.blocks],
+               "sampled_vs_whole": s.k_mD / whole.k_mD - 1, "whole_levels_mD": list(w_vals),
+               "whole_observed_order": whole.extrapolation.observed_order,
+               "pooled_levels_mD": list(s.pooled.values), "sampled_observed_order": s.pooled.observed_order,
+               "sampled_factor_at_whole_order": at_whole, "whole_factor_at_sampled_order": at_sampled,
+               "cpu_whole_s": round(c_whole, 1),
+               "cpu_sampled_s": round(c_s, 1), "load": _load()}
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+        if args.out:
+            with open(args.out, "a") as fh:
+                fh.write(json.dumps(row) + "\n")
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="study", required=True)
+    b = sub.add_parser("blocks")
+    b.add_argument("--image", default=str(DATA / "berea_icl_400.npz"))
+    b.add_argument("--axis", default="x")
+    b.add_argument("--levels", default="1,2,3")
+    b.add_argument("--blocks", type=int, default=8)
+    b.add_argument("--block", type=int, default=None)
+    b.add_argument("--rtol", type=float, default=1e-6)
+    b.add_argument("--out", required=True)
+    b.add_argument("--time-limit", type=float, default=0.0, help="stop starting blocks after this many seconds")
+    s = sub.add_parser("summarise")
+    s.add_argument("path")
+    s.add_argument("--native", type=float, default=None)
+    s.add_argument("--native-json", default=None)
+    v = sub.add_parser("validate")
+    v.add_argument("--cases", default="blobs,spheres,berea")
+    v.add_argument("--n", type=int, default=80)
+    v.add_argument("--levels", default="1,2")
+    v.add_argument("--axis", default="x")
+    v.add_argument("--blocks", type=int, default=8)
+    v.add_argument("--block", type=int, default=None)
+    v.add_argument("--rtol", type=float, default=1e-6)
+    v.add_argument("--image", default=str(DATA / "berea_icl_400.npz"))
+    v.add_argument("--out", default=None)
+    args = ap.parse_args(argv)
+    return {"blocks": run_blocks, "summarise": summarise, "validate": validate}[args.study](args)
+
+
+if __name__ == "__main__":
+    main()
