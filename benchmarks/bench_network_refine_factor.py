@@ -20,8 +20,8 @@ import argparse
 import time
 
 import numpy as np
-
 from bench_network_accuracy import BEREA_VOXEL, images
+
 from porefsi.image.voxel_image import VoxelImage
 from porefsi.stokes import voxel_permeability
 from porefsi.stokes.refine import richardson
@@ -48,7 +48,8 @@ def main(argv=None) -> list[float]:
         e = richardson([1, 2, 3], ks)
         factors.append(e.value / ks[0])
         p2 = 1 - (1 - ks[1] / ks[0]) * (1 + 1 / 3)
-        print(f"crop {o}: k2/k1 {ks[1] / ks[0]:.3f}, order {e.order:.2f}, k_inf/k_1 {factors[-1]:.3f} (p = 2: {p2:.3f})")
+        print(f"crop {o}: k2/k1 {ks[1] / ks[0]:.3f}, order {e.order:.2f}, k_inf/k_1 {factors[-1]:.3f} "
+              f"(p = 2: {p2:.3f})")
     print(f"{a.image}: mean k_inf/k_1 {np.mean(factors):.3f} over {len(factors)} crops")
     return factors
 
