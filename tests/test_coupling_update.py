@@ -164,3 +164,27 @@ def test_deformed_image_shortcut_below_a_quarter_voxel_is_exact(rng):
     u[:, 0] = 0.6e-6  # beyond half a voxel: every voxel takes its neighbour's phase along x
     moved = deformed_image(img, P, u, 2e-6)
     assert np.array_equal(moved.phases[1:], ph[:-1])
+
+
+def test_face_cuts_stretch_with_their_section(rng):
+    """Compress x by (1 - e): a face cut on an x face keeps its radius (its section lies in the
+    y-z plane), one on a y face shrinks by sqrt(1 - e); a uniform dilation scales both by lam."""
+    base = _net()
+    faces = np.zeros((3, 6), bool)
+    faces[0, [0, 2]] = True  # pore 0 on xmin and ymin
+    rad = np.zeros((3, 6))
+    rad[0, [0, 2]] = [2e-6, 1.5e-6]
+    gf = np.where(faces, 0.05, 0.0)
+    net = base.replace(pore_faces=faces, pore_shape_factor=np.full(3, 0.05), throat_shape_factor=np.full(2, 0.05),
+                       pore_face_radius=rad, pore_face_shape_factor=gf,
+                       pore_face_duct_fraction=np.where(faces, 0.3, 0.0))
+    x, nodes = _wall(net, rng)
+    e = 0.01
+    u = np.zeros_like(x)
+    u[:, 0] = -e * x[:, 0]
+    new = geometric_update(net, nodes, x, u)
+    np.testing.assert_allclose(new.pore_face_radius[0, [0, 2]], [2e-6, 1.5e-6 * np.sqrt(1 - e)], rtol=1e-12)
+    assert np.all(new.pore_face_radius[~faces] == 0)
+    lam = 1.01
+    new = geometric_update(net, nodes, x, (lam - 1) * x)
+    np.testing.assert_allclose(new.pore_face_radius, lam * rad, rtol=1e-12)

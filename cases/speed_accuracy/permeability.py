@@ -263,6 +263,13 @@ def _warm_up() -> None:
         pass
 
 
+def _saved_studies(out: Path) -> dict:
+    """The permeability studies of ``out/results.json`` by image name ({} if there are none)."""
+    path = out / "results.json"
+    saved = json.loads(path.read_text()) if path.is_file() else {}
+    return {st["image"]: st for st in saved.get("permeability", {}).get("studies", [])}
+
+
 def _replot(out: Path) -> int:
     """``--replot``: re-score the saved points (the cached full-resolution 400^3 point refreshed), redraw."""
     saved = json.loads((out / "results.json").read_text())
@@ -290,6 +297,9 @@ def _arguments(p) -> None:
     p.add_argument("--replot", action="store_true",
                    help="no solves: re-read results.json (and reference/berea400_voxel.json for the whole 400^3 "
                         "at full resolution), re-score, redraw the chart and table")
+    p.add_argument("--networks-only", action="store_true",
+                   help="recompute the network points only; keep the voxel points of results.json (each study "
+                        "records the commit its voxel points came from)")
     p.add_argument("--full-resolution", action="store_true",
                    help="solve the whole 400^3 at full resolution here (~6 GiB, hours) instead of reading "
                         "reference/berea400_voxel.json")
@@ -304,9 +314,14 @@ def main(argv=None) -> int:
     if args.replot:
         return _replot(out)
     head = git_head()  # the code the points are computed with (HEAD may move during an hour-long run)
+    before = _saved_studies(out) if args.networks_only else {}
     _warm_up()
     for name, img, truth_kind, factors in images(args.smoke, args.images, berea):
         points = network_points(img)
+        if args.networks_only:
+            old = before.get(name, {})
+            points += [r for r in old.get("points", []) if r["method"] == "voxel"]
+            factors = ()
         for f in factors:
             if name == "berea400" and f == 1 and not args.full_resolution:
                 cached = cached_full_resolution()
@@ -321,7 +336,9 @@ def main(argv=None) -> int:
         studies.append({"image": name, "shape": list(img.shape), "voxel_size_m": img.voxel_size,
                         "porosity": img.porosity, "truth_kind": truth_kind, "truth_mD": truth, "points": points,
                         "commit": head, "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
-                        "load_after": loadavg()})
+                        "load_after": loadavg(),
+                        "voxel_commit": before[name].get("voxel_commit", before[name].get("commit"))
+                        if name in before else head})
         for r in points:
             err = "" if r["error"] is None else f"{100 * r['error']:+.1f} %"
             print(f"{name:>9} {label(r):<22} mean {r['k_mean_mD']:8.1f} mD  {err:>8}  CPU {r['cpu_s']:8.1f} s",

@@ -147,8 +147,9 @@ def geometric_update(net: Network, pore_nodes, points, u) -> Network:
     Network
         New centres ``c + t``, volumes ``V det F``, radii ``R (det F)^(1/3)``; throat radius scaled by
         ``sqrt(J |F^{-T} a|)`` (cross-section area stretch, ``a`` the unit throat axis, ``F`` the
-        mean of the two pores' maps), conduit lengths by ``|F a|``. Throat radii are clipped to the
-        new pore radii.
+        mean of the two pores' maps), conduit lengths by ``|F a|``; face-cut radii by
+        ``sqrt(J |F^{-T} n|)`` of their pore's map (``n`` the face normal). Throat radii are clipped
+        to the new pore radii.
 
     Raises
     ------
@@ -173,7 +174,9 @@ def geometric_update(net: Network, pore_nodes, points, u) -> Network:
     across = Jt * np.linalg.norm(np.linalg.solve(np.transpose(Ft, (0, 2, 1)), a[..., None])[..., 0], axis=1)
     t_radius = net.throat_radius * np.sqrt(across)
     t_radius = np.minimum(t_radius, np.minimum(radius[i], radius[j]))
+    faces = {} if net.pore_face_radius is None else {"pore_face_radius": _face_cuts(net.pore_face_radius, F, J)}
     return net.replace(
+        **faces,
         pore_coords=coords,
         pore_radius=radius,
         pore_volume=volume,
@@ -182,6 +185,20 @@ def geometric_update(net: Network, pore_nodes, points, u) -> Network:
         throat_pore_length=net.throat_pore_length * along[:, None],
         throat_volume=net.throat_volume * Jt,
     )
+
+
+def _face_cuts(face_radius: np.ndarray, F: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """Face-cut radii (Np, 6), m, under the pores' maps F (Np, 3, 3) with det F = J (Np,).
+
+    The section normal to a face's axis stretches its area by ``J |F^{-T} e_axis|`` (Nanson's
+    formula), its radius by the square root.
+    """
+    out = np.array(face_radius, dtype=float, copy=True)
+    FiT = np.linalg.inv(F).transpose(0, 2, 1)
+    for axis in range(3):
+        stretch = np.sqrt(J * np.linalg.norm(FiT[:, :, axis], axis=1))
+        out[:, 2 * axis:2 * axis + 2] *= stretch[:, None]
+    return out
 
 
 def displacement_on_grid(points, u, spacing: float, shape, origin=(0.0, 0.0, 0.0)) -> np.ndarray:
