@@ -49,8 +49,7 @@ from porefsi import (  # noqa: E402
     smoke_case,
 )
 from porefsi.case import case_to_toml  # noqa: E402
-from porefsi.coupling import displacement_on_grid  # noqa: E402
-from porefsi.coupling.linear_step import clear_response_cache  # noqa: E402
+from porefsi.coupling import clear_response_cache, displacement_on_grid  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # cases/: the shared helpers
 from _common import git_head, output_dir, parse_args, pyplot, write_results  # noqa: E402
