@@ -446,7 +446,9 @@ def report(work: Path, images) -> int:
                   f"{row['cpu_s']:.1f} |")
         for tol, row in entry.get("auto", {}).items():
             pr = row["fidelity_expected_error_vs_reference"]
-            c = row["fidelity_settings"]["solid.coarsen"]
+            st = row["fidelity_settings"]
+            c = (f"graded {st['solid.coarsen']}-{st['solid.coarsen_max']}" if st.get("solid.mesh") == "graded"
+                 else st["solid.coarsen"])
             print(f"| {name} | **auto {tol}** | {c} | {pr:.3f} | {row['err_field']:.3f} | "
                   f"{row['err_field'] / pr:.2f} | {row['cpu_s']:.1f} ({row['fidelity_expected_cpu_s']:.1f}) |")
     return 0

@@ -50,6 +50,9 @@ RUNS = {
                               "ligaments": 1.0},
     "graded_3_12_g0.5_lig2": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 0.5, "refine": "invaded",
                               "ligaments": 2.0},
+    "graded_2_16_g0.5": {"mesh": "graded", "coarsen": 2, "coarsen_max": 16, "grading": 0.5, "refine": "invaded"},
+    "graded_2_16_g0.5_lig1": {"mesh": "graded", "coarsen": 2, "coarsen_max": 16, "grading": 0.5, "refine": "invaded",
+                              "ligaments": 1.0},
     "graded_3_12_g1_lig1": {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 1.0, "refine": "invaded",
                             "ligaments": 1.0},
 }

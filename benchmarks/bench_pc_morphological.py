@@ -47,8 +47,13 @@ SIGMA = 0.03
 TARGETS = (0.9, 0.5)
 
 
-def porespy_curve(pore: np.ndarray, vs: float, n_steps: int) -> dict:
-    """PoreSpy's sphere-insertion drainage along axis 0: Pc steps (Pa) and non-wetting saturation."""
+def porespy_curve(pore: np.ndarray, vs: float, n_steps: int | None) -> dict:
+    """PoreSpy's sphere-insertion drainage along axis 0: Pc steps (Pa) and non-wetting saturation.
+
+    ``n_steps=None`` ("exact"): the steps are the distinct values of PoreSpy's own Pc field,
+    2 sigma / (dt vs) with dt = sqrt(n) voxels, so the saturation is evaluated at every pressure
+    where it can change and the curve is PoreSpy's exact staircase (no step bracket).
+    """
     import porespy as ps  # noqa: PLC0415 - peers env only
     from edt import edt  # noqa: PLC0415 - PoreSpy's own dependency
 
@@ -62,7 +67,11 @@ def porespy_curve(pore: np.ndarray, vs: float, n_steps: int) -> dict:
     outlets = np.zeros_like(pore)
     outlets[-1] = pore[-1]
     lo, hi = np.percentile(pc[pore], [0.01, 99.9])
-    steps = np.geomspace(lo * 0.95, hi, n_steps)
+    if n_steps is None:
+        values = np.unique(pc[pore])
+        steps = values[(values >= lo * 0.95) & (values <= hi)]
+    else:
+        steps = np.geomspace(lo * 0.95, hi, n_steps)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = ps.simulations.drainage(im=pore, pc=pc, dt=dt, inlets=inlets, outlets=outlets, steps=steps)
@@ -114,7 +123,8 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--image", required=True, help="npz with 'image' (1 = pore) and 'voxel_size_m'")
     ap.add_argument("--porespy-json", help="saved PoreSpy curve to reuse (else computed: peers env)")
-    ap.add_argument("--steps", type=int, default=60)
+    ap.add_argument("--steps", default="60",
+                    help="number of geometric Pc steps for PoreSpy, or 'exact': every distinct value of its Pc field")
     ap.add_argument("--json")
     a = ap.parse_args(argv)
     z = np.load(a.image)
@@ -123,7 +133,7 @@ def main(argv=None) -> dict:
     if a.porespy_json and Path(a.porespy_json).is_file():
         ref = json.loads(Path(a.porespy_json).read_text())
     else:
-        ref = porespy_curve(pore, vs, a.steps)
+        ref = porespy_curve(pore, vs, None if a.steps == "exact" else int(a.steps))
         print(f"PoreSpy drainage {ref['cpu_s']:.0f} s CPU", flush=True)
         if a.porespy_json:
             Path(a.porespy_json).write_text(json.dumps(ref))

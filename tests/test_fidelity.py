@@ -368,7 +368,11 @@ def test_auto_end_to_end_on_a_tiny_image(tmp_path, capsys):
     assert "fidelity auto (tolerance 0.6): solid.coarsen = " in cap.err
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["fidelity"] == "auto" and 0 < s["fidelity_expected_error"] <= 0.6
-    assert s["fidelity_settings"]["solid.coarsen"] == load_case(tmp_path / "o" / "case.toml").solid.coarsen
+    ran = load_case(tmp_path / "o" / "case.toml")
+    assert set(s["fidelity_settings"]) == set(FIDELITY_KEYS)  # every knob as run, the mesh's kind included
+    for key, v in s["fidelity_settings"].items():
+        sec, k = key.split(".")
+        assert getattr(getattr(ran, sec), k) == v, key
     assert s["fidelity_target"] == {"tolerance": 0.6, "budget_s": None, "met": True}
     assert s["status"] == "completed"
 

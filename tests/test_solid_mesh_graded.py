@@ -242,6 +242,10 @@ def test_case_key_builds_a_graded_problem_refined_at_the_predicted_invasion():
     # coarse leaves away from the predicted invasion: fewer nodes than the uniform mesh of the fine size
     uni = problem_from_case(Case().replace(drainage={"t_end": 2.0}, solid={"coarsen": 6}))
     assert prob.mesh.n_nodes < uni.mesh.n_nodes
+    # solid.ligaments: the thin ligaments around the predicted invasion join the fine region
+    lig = problem_from_case(case.replace(solid={"ligaments": 1.0}))
+    assert prob.mesh_result.leaf_counts[6] < lig.mesh_result.leaf_counts[6]
+    assert prob.mesh.n_nodes < lig.mesh.n_nodes < uni.mesh.n_nodes
     with pytest.raises(ConfigError, match="mesh"):
         Case().replace(solid={"mesh": "octree"})
     with pytest.raises(ConfigError, match="grading"):
@@ -312,9 +316,11 @@ def test_ligament_region_keeps_thin_walls_to_other_pores_only():
 def test_graded_mesh_with_ligaments_is_conforming_and_fine_across_the_thin_wall():
     """``ligaments``: conforming, same quality bounds, more fine leaves than without, the thin wall meshed
     at the fine block size (nodes every ``coarsen`` voxels across it), the thick wall coarser."""
+    from porefsi.solid.graded import ligament_region
+
     img, a, (ca, cb, cc) = _three_pores(gap=4)
     plain = mesh_graded(img, coarsen=1, coarsen_max=8, grading=0.5, refine=a)
-    lig = mesh_graded(img, coarsen=1, coarsen_max=8, grading=0.5, refine=a, ligaments=1.0)
+    lig = mesh_graded(img, coarsen=1, coarsen_max=8, grading=0.5, refine=ligament_region(img.phases == 1, a, 1.0))
     for m in (plain.mesh, lig.mesh):
         _check_conforming(m)
         lo, hi, rr = tet_quality(m.points, m.tets)
@@ -331,4 +337,4 @@ def test_graded_mesh_with_ligaments_is_conforming_and_fine_across_the_thin_wall(
 
     assert wall_extent(lig.mesh) <= 1.0 + 1e-9 < wall_extent(plain.mesh)
     with pytest.raises(InputError, match="ligaments"):
-        mesh_graded(img, refine=a, ligaments=-1.0)
+        ligament_region(img.phases == 1, a, -1.0)

@@ -107,6 +107,8 @@ def test_bad_inputs_and_memory_refusals():
             sampled_permeability(img, "x", **kw)
     with pytest.raises(InputError, match=r"native result is along y"):
         sampled_permeability(img, "x", block=8, native=voxel_permeability(img, "y"))
+    with pytest.raises(InputError, match=r"native result was solved with wall='ghost'"):
+        sampled_permeability(img, "x", block=8, native=voxel_permeability(img, "x", wall="ghost"))
     with pytest.raises(InputError, match=r"a 8\^3 block needs .* above the .* use a smaller --block"):
         sampled_permeability(img, "x", block=8, max_memory=1e5)
     block_need = refined_memory_bytes((8, 8, 8), 512, 3, 0, 2)  # any 8^3 block, all pore, refined 3

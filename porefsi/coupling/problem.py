@@ -22,7 +22,7 @@ from porefsi.network.extract import Extraction, extract_network
 from porefsi.network.network import Network
 from porefsi.solid.bc import check_load_path, uniaxial_bcs
 from porefsi.solid.footprint import choose_linear_solver
-from porefsi.solid.graded import mesh_graded
+from porefsi.solid.graded import ligament_region, mesh_graded
 from porefsi.solid.materials import make_material
 from porefsi.solid.mesh import MeshResult, SolidMesh, mesh_solid
 from porefsi.solid.model import SolidModel
@@ -137,7 +137,7 @@ def build_solid(image: VoxelImage, options: SolidOptions, refine: np.ndarray | N
     """
     if options.mesh == "graded":
         mres = mesh_graded(image, coarsen=options.coarsen, coarsen_max=options.coarsen_max, grading=options.grading,
-                           refine=refine, support_axis=options.load_axis, ligaments=options.ligaments)
+                           refine=refine, support_axis=options.load_axis)
     else:
         mres = mesh_solid(image, coarsen=options.coarsen, support_axis=options.load_axis)
     material = make_material(options.material, E=options.E, nu=options.nu, density=options.density)
@@ -169,7 +169,10 @@ def build_problem(image: VoxelImage, options: CoupledOptions | None = None) -> C
         ex = extract_flow_network(image, options.axis, options.network.conductance)
     with clock("mesh"):
         graded_invaded = options.solid.mesh == "graded" and options.solid.refine == "invaded"
-        mres, model = build_solid(image, options.solid, predicted_invasion(ex, options) if graded_invaded else None)
+        refine = None
+        if graded_invaded:  # the loaded pores and the thin solid ligaments that carry their load
+            refine = ligament_region(image.phases != 0, predicted_invasion(ex, options), options.solid.ligaments)
+        mres, model = build_solid(image, options.solid, refine)
     with clock("interface_build"):
         itf = options.interface.build(ex.network, ex.labels, mres.mesh, voxel_size=image.voxel_size,
                                       origin=image.origin, model=model)

@@ -84,7 +84,7 @@ def ligament_region(pore: np.ndarray, refine: np.ndarray, factor: float) -> np.n
     Parameters
     ----------
     pore, refine : ndarray of bool, shape (nx, ny, nz)
-        Pore voxels; voxels to resolve finely (the loaded pores; a subset of ``pore``).
+        Pore voxels; voxels to resolve finely (the loaded pores; only its pore voxels count).
     factor : float
         Ligament thickness limit in loaded chords (>= 0; 0 returns ``refine``).
 
@@ -92,6 +92,11 @@ def ligament_region(pore: np.ndarray, refine: np.ndarray, factor: float) -> np.n
     -------
     ndarray of bool, shape (nx, ny, nz)
     """
+    if not (isinstance(factor, (int, float, np.floating, np.integer)) and np.isfinite(factor) and factor >= 0):
+        raise InputError(f"ligaments must be a finite number >= 0 (loaded chords), got {factor!r}; 0 turns it off")
+    if refine.shape != pore.shape:
+        raise InputError(f"refine {refine.shape} and pore {pore.shape} masks must have the same shape")
+    refine = refine & pore
     if factor <= 0 or not refine.any():
         return refine.copy()
     other = pore & ~refine
@@ -282,15 +287,12 @@ def _leaf_solid(fine: np.ndarray, lines, lev: np.ndarray, threshold: float) -> n
     return out
 
 
-def _check_graded_args(image, coarsen_max, grading, refine, ligaments=0.0) -> np.ndarray:
+def _check_graded_args(image, coarsen_max, grading, refine) -> np.ndarray:
     """The refine mask (voxels) of :func:`mesh_graded`, after checking its own arguments."""
     if isinstance(coarsen_max, bool) or not isinstance(coarsen_max, (int, np.integer)) or coarsen_max < 1:
         raise InputError(f"coarsen_max must be an integer >= 1 (voxels), got {coarsen_max!r}")
     if not (isinstance(grading, (int, float, np.floating, np.integer)) and np.isfinite(grading) and grading > 0):
         raise InputError(f"grading must be a finite number > 0, got {grading!r}; 1 is the usual choice")
-    if not (isinstance(ligaments, (int, float, np.floating, np.integer)) and np.isfinite(ligaments)
-            and ligaments >= 0):
-        raise InputError(f"ligaments must be a finite number >= 0 (loaded chords), got {ligaments!r}; 0 turns it off")
     if refine is None:
         return image.phases != 0
     refine = np.asarray(refine)
@@ -310,7 +312,6 @@ def mesh_graded(
     threshold: float = 0.5,
     keep: str = "supported",
     support_axis: str | int | None = "z",
-    ligaments: float = 0.0,
 ) -> MeshResult:
     """Mesh the solid of ``image`` with blocks of ``coarsen`` voxels near ``refine``, coarser away from it.
 
@@ -329,14 +330,12 @@ def mesh_graded(
         ``grading * s`` blocks (centre to centre) from every block holding a ``refine`` voxel.
         Smaller: coarser sooner, fewer nodes.
     refine : ndarray of bool, shape of the image, optional
-        Voxels to resolve finely: the loaded pores. Default: every pore voxel (fine at every
-        wall, coarse only inside grains). Away from it a leaf is solid when its solid voxel
+        Voxels to resolve finely: the loaded pores, with the solid ligaments that carry their
+        load (:func:`ligament_region`). Default: every pore voxel (fine at every wall, coarse
+        only inside grains). Away from it a leaf is solid when its solid voxel
         fraction is >= ``threshold``, so the walls there are those of the coarser block size.
     threshold, keep, support_axis
         As for :func:`~porefsi.solid.mesh.mesh_solid`.
-    ligaments : float, default 0
-        Also keep fine the solid ligaments between ``refine`` and the other pores thinner than
-        ``ligaments`` mean chords of ``refine`` (:func:`ligament_region`; 0: off).
 
     Returns
     -------
@@ -348,14 +347,12 @@ def mesh_graded(
     ------
     InputError
         Bad arguments (as :func:`~porefsi.solid.mesh.mesh_solid`, plus ``coarsen_max`` < 1,
-        ``grading`` <= 0, ``ligaments`` < 0, or a ``refine`` mask of another shape).
+        ``grading`` <= 0, or a ``refine`` mask of another shape).
     MeshError
         No solid, or no solid connected to the supports.
     """
     _check_mesh_args(image, coarsen, threshold, keep)
-    refine = _check_graded_args(image, coarsen_max, grading, refine, ligaments)
-    if ligaments > 0:
-        refine = ligament_region(image.phases != 0, refine & (image.phases != 0), float(ligaments))
+    refine = _check_graded_args(image, coarsen_max, grading, refine)
     c = int(coarsen)
     fine = image.phases == 0
     fraction, lines = _coarsen(fine, c)

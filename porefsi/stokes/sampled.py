@@ -273,6 +273,11 @@ def _native_k(image: VoxelImage, ax: int, native, opts: StokesOptions):
     if hasattr(native, "k_mD"):
         if getattr(native, "axis", AXES[ax]) != AXES[ax]:
             raise InputError(f"native result is along {native.axis}, not {AXES[ax]}; pass the solve along {AXES[ax]}")
+        info = getattr(native, "info", {}) or {}
+        for key, want in (("wall", opts.wall), ("buffer", opts.buffer_layers), ("refine", 1)):
+            if key in info and info[key] != want:
+                raise InputError(f"native result was solved with {key}={info[key]!r}, the blocks with {want!r}; "
+                                 "pass a native solve with the same options")
         return float(native.k_mD), native
     if isinstance(native, bool) or not isinstance(native, (int, float, np.integer, np.floating)) \
             or not (math.isfinite(native) and native > 0):
