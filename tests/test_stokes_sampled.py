@@ -149,3 +149,27 @@ def test_cli_sampled_options_need_extrapolation(capsys):
     assert "expected a whole number >= 2" in capsys.readouterr().err
     assert main(["permeability", "--blocks", "3"]) == 2  # --method network
     assert "voxel-solver options" in capsys.readouterr().err
+
+
+def test_cli_extrapolate_samples_blocks_when_the_whole_refinement_does_not_fit(tmp_path, capsys, monkeypatch):
+    from porefsi.stokes import _refine_grid as rg
+
+    path = tmp_path / "blobs.npz"
+    img = _blobs(16)
+    np.savez(path, image=img.phases, voxel_size_m=1e-6)
+    whole = refined_memory_bytes(img.shape, int(img.pore.sum()), 2, 0, 2)
+    native = refined_memory_bytes(img.shape, int(img.pore.sum()), 1, 0, 2)
+    assert native < 0.5 * whole
+    for mod in (rg, sm):
+        monkeypatch.setattr(mod, "available_memory_bytes", lambda: 0.5 * whole)
+    args = ["permeability", str(path), "--method", "voxel", "--extrapolate", "--refine", "2", "--blocks", "2",
+            "--block", "8", "--json"]
+    assert main(args) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["extrapolation_mode"] == "sampled" and "does not fit" in out["extrapolation"]["reason"]
+    assert out["correction_factor"] == pytest.approx(out["extrapolation"]["factor"], rel=1e-12)
+    assert out["uncertainty_mD"] == pytest.approx(out["extrapolation"]["uncertainty_mD"], rel=1e-12)
+    for mod in (rg, sm):
+        monkeypatch.setattr(mod, "available_memory_bytes", lambda: 2.0 * whole)
+    assert main(args[:-5] + ["--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["extrapolation_mode"] == "whole"
