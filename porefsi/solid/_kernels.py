@@ -110,6 +110,18 @@ def _stress_moduli(kind, lam, mu, H, F, P, A, want_A):
 
 
 @jit
+def _element_gradient(tets, dN, u, e, H, F):
+    """Displacement gradient H_iJ = sum_a u[tets[e, a], i] dN[e, a, J] of element e, and F = I + H."""
+    for i in range(3):
+        for jj in range(3):
+            s = 0.0
+            for a in range(4):
+                s += u[tets[e, a], i] * dN[e, a, jj]
+            H[i, jj] = s
+            F[i, jj] = s + (1.0 if i == jj else 0.0)
+
+
+@jit
 def _assemble_p1(geometry, u, material, want_K, fint, csr):
     """Add f_int (3 Nn,) and, if ``want_K``, the tangent into CSR ``data``; return # inverted.
 
@@ -128,13 +140,7 @@ def _assemble_p1(geometry, u, material, want_K, fint, csr):
     A = np.empty((3, 3, 3, 3))
     H = np.empty((3, 3))  # H[i, J] = sum_L A_iJkL dN_bL for the current (b, k)
     for e in range(tets.shape[0]):
-        for i in range(3):
-            for jj in range(3):
-                s = 0.0
-                for a in range(4):
-                    s += u[tets[e, a], i] * dN[e, a, jj]
-                Hd[i, jj] = s
-                F[i, jj] = s + (1.0 if i == jj else 0.0)
+        _element_gradient(tets, dN, u, e, Hd, F)
         J = _stress_moduli(kind, lam, mu, Hd, F, P, A, want_K)
         if J <= 0.0:
             n_bad += 1
@@ -183,13 +189,7 @@ def _p1_cauchy(tets, dN, u, material, sigma):
     P = np.empty((3, 3))
     A = np.empty((1, 1, 1, 1))
     for e in range(tets.shape[0]):
-        for i in range(3):
-            for jj in range(3):
-                s = 0.0
-                for a in range(4):
-                    s += u[tets[e, a], i] * dN[e, a, jj]
-                H[i, jj] = s
-                F[i, jj] = s + (1.0 if i == jj else 0.0)
+        _element_gradient(tets, dN, u, e, H, F)
         J = _stress_moduli(kind, lam, mu, H, F, P, A, False)
         if J <= 0.0:
             n_bad += 1
