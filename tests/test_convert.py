@@ -288,3 +288,31 @@ def test_vtp_rejects_bad_arrays(rng, tmp_path):
         write_network_vtp(net, tmp_path / "a.vtp", cell_data={'a"b': np.zeros(net.n_throats)})
     with pytest.raises(InputError, match="does not exist"):
         write_network_vtp(net, tmp_path / "nope" / "a.vtp")
+
+
+def test_vtp_carries_the_measured_sections_and_face_cuts(tmp_path):
+    """Shape factors, duct shares and face cuts of an extracted network reach the file, placed per entity."""
+    pv = pytest.importorskip("pyvista")
+    from scipy import ndimage
+
+    from porefsi.image.voxel_image import VoxelImage
+    from porefsi.network.extract import extract_network
+
+    field = ndimage.gaussian_filter(np.random.default_rng(3).normal(size=(40, 40, 40)), 3.0)
+    pore = field <= np.quantile(field, 0.35)
+    net = extract_network(VoxelImage(pore, 3e-6)).network
+    assert net.has_face_sections and net.throat_duct_fraction is not None
+    n_p = net.n_pores
+    m = pv.read(write_network_vtp(net, tmp_path / "n.vtp"))
+    lines = m.lines.reshape(-1, 3)[:, 1:]
+    np.testing.assert_array_equal(m.point_data["shape_factor"][:n_p], net.pore_shape_factor)
+    np.testing.assert_array_equal(m.point_data["shape_factor"][lines], np.column_stack([net.throat_shape_factor] * 2))
+    np.testing.assert_array_equal(m.cell_data["shape_factor"], np.r_[net.pore_shape_factor, net.throat_shape_factor])
+    np.testing.assert_array_equal(m.cell_data["duct_fraction"][n_p:], net.throat_duct_fraction)
+    assert np.all(np.isnan(m.cell_data["duct_fraction"][:n_p]))
+    for name, field in (("face_cut_radius", net.pore_face_radius),
+                        ("face_cut_shape_factor", net.pore_face_shape_factor),
+                        ("face_cut_duct_fraction", net.pore_face_duct_fraction)):
+        pore_of = m.point_data["pore_index"]
+        np.testing.assert_array_equal(m.point_data[name], field[pore_of])
+    np.testing.assert_array_equal(m.point_data["face_cut_radius"][:n_p] > 0, net.pore_faces)

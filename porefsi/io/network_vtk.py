@@ -121,10 +121,15 @@ def write_network_vtp(
     throat end points), ``is_throat`` (0/1), ``pore_index`` (the pore a point sits at),
     ``volume`` (m³), ``coordination`` and one ``UInt8`` array per box face (``xmin`` ...
     ``zmax``) of that pore, and the ``point_data`` arrays (a throat end point takes the value of
-    the pore it sits at).
+    the pore it sits at). Networks with measured sections add ``shape_factor`` (G = A/P², placed
+    like ``radius``) and, with face cuts, ``face_cut_radius`` (m), ``face_cut_shape_factor`` and
+    ``face_cut_duct_fraction``: 6 components in :data:`~porefsi.network.network.FACES` order, 0
+    where the pore does not touch that face (:class:`~porefsi.network.network.Network`).
     Cell arrays: ``radius`` (pore radius on vertex cells, throat radius on line cells, m),
     ``length`` (0 on vertex cells; conduit length centre to centre on line cells, m),
-    ``volume`` (m³, pore or throat), ``is_throat`` (0/1) and ``index`` (pore or throat index).
+    ``volume`` (m³, pore or throat), ``is_throat`` (0/1) and ``index`` (pore or throat index);
+    with measured sections also ``shape_factor`` (pore or throat) and ``duct_fraction`` (3
+    components: the shares of the pore-i, throat and pore-j ducts; NaN on vertex cells).
 
     In ParaView: spheres with Glyph (Glyph Type Sphere, Scale Array ``radius``, Scale Factor 2
     since the default sphere has radius 0.5, Glyph Mode All Points: the spheres drawn at throat
@@ -151,18 +156,32 @@ def _point_arrays(net: Network, at: np.ndarray, point_data, tubes: bool) -> dict
         "volume": net.pore_volume,
         "coordination": net.coordination.astype(np.int64),
         **{name: net.pore_faces[:, k] for k, name in enumerate(FACES)},
+        **_face_cut_arrays(net),
     }
+    own = {"radius": (net.pore_radius, net.throat_radius)}
+    if net.pore_shape_factor is not None:
+        own["shape_factor"] = (net.pore_shape_factor, net.throat_shape_factor)
     extra_p = _user_arrays(point_data, n_p, "pore")
-    clash = sorted(set(extra_p) & ({"radius", "is_throat", "pore_index"} | set(pore_vals)))
+    clash = sorted(set(extra_p) & ({"is_throat", "pore_index"} | set(own) | set(pore_vals)))
     if clash:
         raise InputError(f"point_data names {clash} are reserved by the network arrays; rename them")
     pore_vals.update(extra_p)
-    return {
-        "radius": np.concatenate([net.pore_radius, np.repeat(net.throat_radius, 2)]) if tubes
-        else net.pore_radius,
+    return {  # radius and section: the pore's value on pore points, the throat's on its end points
+        **{k: np.concatenate([p_, np.repeat(t_, 2)]) if tubes else p_ for k, (p_, t_) in own.items()},
         "is_throat": (np.arange(at.size) >= n_p).astype(np.uint8),
         "pore_index": at,
         **{k: v[at] for k, v in pore_vals.items()},
+    }
+
+
+def _face_cut_arrays(net: Network) -> dict:
+    """Per-pore face-cut sections (:attr:`Network.pore_face_radius` ...), 6 components in FACES order."""
+    if not net.has_face_sections:
+        return {}
+    return {
+        "face_cut_radius": net.pore_face_radius,
+        "face_cut_shape_factor": net.pore_face_shape_factor,
+        "face_cut_duct_fraction": net.pore_face_duct_fraction,
     }
 
 
@@ -177,6 +196,10 @@ def _cell_arrays(net: Network, cell_data) -> dict:
         "is_throat": np.concatenate([np.zeros(n_p, np.uint8), np.ones(n_t, np.uint8)]),
         "index": np.concatenate([np.arange(n_p), np.arange(n_t)]).astype(np.int64),
     }
+    if net.pore_shape_factor is not None:
+        cdata["shape_factor"] = np.concatenate([net.pore_shape_factor, net.throat_shape_factor])
+    if net.throat_duct_fraction is not None:  # (pore i, throat, pore j) shares: NaN on the pore cells
+        cdata["duct_fraction"] = np.concatenate([np.full((n_p, 3), np.nan), net.throat_duct_fraction])
     extra_c = _user_arrays(cell_data, n_t, "throat")
     clash = sorted(set(extra_c) & set(cdata))
     if clash:
