@@ -313,6 +313,34 @@ def test_ligament_region_keeps_thin_walls_to_other_pores_only():
     assert np.array_equal(ligament_region(pore, a, 0.0), a)
 
 
+def _ligament_region_whole_image(pore, refine, factor):
+    """Reference twin of ligament_region: both distance maps over the whole image."""
+    from porefsi.solid.graded import mean_chord
+
+    refine = refine & pore
+    other = pore & ~refine
+    t = ndimage.distance_transform_edt(~refine) + ndimage.distance_transform_edt(~other)
+    return refine | (~pore & (t <= factor * mean_chord(refine)))
+
+
+@pytest.mark.parametrize("factor", [0.5, 1.0, 2.0])
+def test_ligament_region_on_its_box_equals_the_whole_image(factor):
+    """The distances are computed on the box around the refined pores grown by twice the reach: the
+    region is voxel for voxel the whole-image one (blob media, a local and a spread refined set,
+    pores just outside the box included)."""
+    from porefsi.solid.graded import ligament_region
+
+    img = _blobs(n=48, seed=5)
+    pore = img.phases == 1
+    lab, n = ndimage.label(pore)
+    sizes = np.bincount(lab.ravel())[1:]
+    for refine in (lab == 1 + int(np.argmax(sizes)),  # the largest cluster (spread)
+                   pore & (np.indices(pore.shape)[0] < 8)):  # the pores near the face x = 0 (local)
+        got = ligament_region(pore, refine, factor)
+        want = _ligament_region_whole_image(pore, refine, factor)
+        assert np.array_equal(got, want) and (got & ~pore).any()
+
+
 def test_graded_mesh_with_ligaments_is_conforming_and_fine_across_the_thin_wall():
     """``ligaments``: conforming, same quality bounds, more fine leaves than without, the thin wall meshed
     at the fine block size (nodes every ``coarsen`` voxels across it), the thick wall coarser."""
