@@ -313,6 +313,34 @@ def test_ligament_region_keeps_thin_walls_to_other_pores_only():
     assert np.array_equal(ligament_region(pore, a, 0.0), a)
 
 
+def _ligament_region_whole_image(pore, refine, factor):
+    """Reference twin of ligament_region: both distance maps over the whole image."""
+    from porefsi.solid.graded import mean_chord
+
+    refine = refine & pore
+    other = pore & ~refine
+    t = ndimage.distance_transform_edt(~refine) + ndimage.distance_transform_edt(~other)
+    return refine | (~pore & (t <= factor * mean_chord(refine)))
+
+
+@pytest.mark.parametrize("factor", [0.5, 1.0, 2.0])
+def test_ligament_region_on_its_box_equals_the_whole_image(factor):
+    """The distances are computed on the box around the refined pores grown by twice the reach: the
+    region is voxel for voxel the whole-image one (blob media, a local and a spread refined set,
+    pores just outside the box included)."""
+    from porefsi.solid.graded import ligament_region
+
+    img = _blobs(n=48, seed=5)
+    pore = img.phases == 1
+    lab, n = ndimage.label(pore)
+    sizes = np.bincount(lab.ravel())[1:]
+    for refine in (lab == 1 + int(np.argmax(sizes)),  # the largest cluster (spread)
+                   pore & (np.indices(pore.shape)[0] < 8)):  # the pores near the face x = 0 (local)
+        got = ligament_region(pore, refine, factor)
+        want = _ligament_region_whole_image(pore, refine, factor)
+        assert np.array_equal(got, want) and (got & ~pore).any()
+
+
 def test_graded_mesh_with_ligaments_is_conforming_and_fine_across_the_thin_wall():
     """``ligaments``: conforming, same quality bounds, more fine leaves than without, the thin wall meshed
     at the fine block size (nodes every ``coarsen`` voxels across it), the thick wall coarser."""
@@ -338,3 +366,54 @@ def test_graded_mesh_with_ligaments_is_conforming_and_fine_across_the_thin_wall(
     assert wall_extent(lig.mesh) <= 1.0 + 1e-9 < wall_extent(plain.mesh)
     with pytest.raises(InputError, match="ligaments"):
         ligament_region(img.phases == 1, a, -1.0)
+
+
+def test_invaded_outside_finds_the_invaded_pores_with_no_refined_voxel():
+    """Pores holding fluid with no voxel in the refined region; unlabelled voxels and empty pores ignored."""
+    from porefsi.coupling._loop_support import invaded_outside
+
+    labels = np.array([[[-1, 0, 0, 1, 2, 3]]])
+    refined = np.array([[[True, True, False, False, True, False]]])
+    sat = np.array([0.5, 1.0, 0.2, 0.0])  # pore 0 refined (one of its voxels), 1 and 2 invaded, 3 empty
+    assert invaded_outside(refined, labels, sat).tolist() == [1]
+    assert invaded_outside(np.zeros_like(refined), labels, sat).tolist() == [0, 1, 2]
+    assert invaded_outside(refined, labels, np.zeros(4)).tolist() == []
+
+
+def test_coupled_run_warns_once_when_fluid_leaves_the_refined_region():
+    """A graded mesh refined at the predicted invasion: at the paper's rate the load stays inside it
+    (no warning, ``coarse_load`` None); at 1e5 x the rate the viscous front fills pores invasion
+    percolation did not predict (docs/stability.md (e) 5) and the run warns once, with a
+    CoarseLoadWarning, recording when and how many pores (kept through a checkpoint); a uniform mesh
+    has no refined region and never warns."""
+    import warnings
+
+    from porefsi import Case, CoupledRun, problem_from_case
+    from porefsi.coupling.problem import CoarseLoadWarning
+
+    graded = {"mesh": "graded", "coarsen": 6, "coarsen_max": 24, "grading": 0.5, "refine": "invaded"}
+    rate = Case().drainage.rate
+
+    def run(solid, factor, t_end):
+        case = Case().replace(drainage={"rate": rate * factor, "t_end": t_end}, coupling={"exchange_dt": t_end / 2},
+                              solid=solid)
+        r = CoupledRun(problem_from_case(case))
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always")
+            list(r.steps())
+        return r, [x for x in w if issubclass(x.category, CoarseLoadWarning)]
+
+    r, w = run(graded, 1.0, 2.0)
+    assert r.problem.refined is not None and r.problem.refined.any()
+    assert r.coarse_load is None and not w
+    r, w = run(graded, 1e5, 1e-4)
+    assert len(w) == 1 and "outside the graded mesh's refined region" in str(w[0].message)
+    assert r.coarse_load["t_s"] == pytest.approx(5e-5) and r.coarse_load["n_pores"] >= 1
+    # the recorded pores are the invaded ones with no voxel in the refined region
+    inv = r.sim.state.nw_saturation > 0
+    outside = [p for p in np.flatnonzero(inv) if not r.problem.refined[r.labels == p].any()]
+    assert len(outside) >= r.coarse_load["n_pores"]
+    back = CoupledRun.restore(r.problem, *r.checkpoint())
+    assert back.coarse_load == r.coarse_load
+    r, w = run({"coarsen": 6}, 1e5, 1e-4)
+    assert r.problem.refined is None and r.coarse_load is None and not w

@@ -445,6 +445,7 @@ def _write_summary(out, case, sofar: _Sofar, clock: _RunClock, status, error, fi
         "mass_balance_error": mass,
         "load_balance_error": load,
         "interface_unloaded_pores": run.interface.n_unloaded,
+        "load_outside_refined": run.coarse_load,  # graded mesh: fluid left the refined region (CoarseLoadWarning)
         "solid_response": run.solid.summary() if hasattr(run.solid, "summary") else {
             "requested": "nonlinear", "path": "nonlinear"},
         "reextraction": None if case.network.update != "reextract" else {

@@ -1,6 +1,7 @@
 """Helpers of the coupled loop (private).
 
-Solver failures as typed errors, image digests, topology comparison.
+Solver failures as typed errors, image digests, topology comparison, invaded pores outside a
+graded mesh's refined region.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import numpy as np
 from porefsi.errors import ConvergenceError
 from porefsi.network.network import Network
 
-__all__ = ["SOLVER_FAILURES", "solver_failure", "digest", "same_topology"]
+__all__ = ["SOLVER_FAILURES", "solver_failure", "digest", "same_topology", "invaded_outside"]
 
 #: Exceptions solver libraries raise for a singular or broken system (SuperLU: RuntimeError).
 SOLVER_FAILURES = (RuntimeError, ArithmeticError, np.linalg.LinAlgError)
@@ -39,3 +40,25 @@ def same_topology(a: Network, b: Network) -> bool:
     """Whether two networks have the same pores, throats and face pores (sizes may differ)."""
     return a.n_pores == b.n_pores and np.array_equal(a.throat_conns, b.throat_conns) and \
         np.array_equal(a.pore_faces, b.pore_faces)
+
+
+def invaded_outside(refined: np.ndarray, labels: np.ndarray, nw_saturation: np.ndarray) -> np.ndarray:
+    """Pores (indices) holding non-wetting fluid none of whose voxels lies in ``refined``.
+
+    Parameters
+    ----------
+    refined : ndarray of bool, shape (nx, ny, nz)
+        Voxels of the pores the graded mesh resolves finely.
+    labels : ndarray of int, shape (nx, ny, nz)
+        Pore index of each voxel of the current network (-1: none).
+    nw_saturation : ndarray of float, shape (Np,)
+        Non-wetting saturation of the current network's pores.
+
+    Returns
+    -------
+    ndarray of int64, shape (k,)
+    """
+    n = len(nw_saturation)
+    hit = labels[refined]
+    inside = np.bincount(hit[(hit >= 0) & (hit < n)], minlength=n) > 0
+    return np.flatnonzero((np.asarray(nw_saturation) > 0) & ~inside)

@@ -54,7 +54,7 @@ def run_state(run) -> tuple[dict, dict]:
     meta = {"format": CHECKPOINT_FORMAT, "step_index": run.step_index, "t": run.t, "seconds": run.seconds,
             "cpu_seconds": run.cpu_seconds, "n_extractions": run.n_extractions,
             "n_extractions_reused": run.n_extractions_reused, "update_seconds": run.update_seconds,
-            "update_cpu_seconds": run.update_cpu_seconds}
+            "update_cpu_seconds": run.update_cpu_seconds, "coarse_load": run.coarse_load}
     simulator_state(run.sim, "sim", arrays, meta)
     meta["network_is_sim_network"] = run.network is run.sim.net
     if not meta["network_is_sim_network"]:
@@ -92,6 +92,7 @@ def restore_run_state(run, arrays: dict, meta: dict) -> None:
     run.cpu_seconds.update(meta.get("cpu_seconds", {}))
     run.extractions.n_computed = int(meta.get("n_extractions", 0))
     run.extractions.n_reused = int(meta.get("n_extractions_reused", 0))
+    run.coarse_load = meta.get("coarse_load")
     run.update_seconds.update(meta.get("update_seconds", {}))
     run.update_cpu_seconds.update(meta.get("update_cpu_seconds", {}))
     run.solid.restore(arrays, meta)

@@ -23,16 +23,18 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import warnings
 from collections.abc import Callable, Iterator
 
 import numpy as np
 
 from porefsi.coupling import checkpoint as _ckpt
+from porefsi.coupling._loop_support import invaded_outside
 from porefsi.coupling.fluid_step import advance_fluid, carry_state, fluid_times, pore_pressure, transfer_loads
 from porefsi.coupling.interface import Interface
 from porefsi.coupling.linear_step import make_stepper
 from porefsi.coupling.network_step import ExtractionCache, NetworkState, make_updater
-from porefsi.coupling.problem import CoupledProblem
+from porefsi.coupling.problem import CoarseLoadWarning, CoupledProblem
 from porefsi.coupling.records import TIMESERIES_COLUMNS, TIMESERIES_DOCS, ExchangeRecord, Iterate, IterationStats
 from porefsi.coupling.relaxation import Relaxation
 from porefsi.coupling.timing import StageClock
@@ -129,6 +131,11 @@ class CoupledRun:
         The re-extraction part of the ``update`` stage, wall and CPU: ``voxelise`` (the deformed
         solid on the voxel grid), ``extract`` (computed extractions), ``interface_rebuild`` (after
         a topology change), s.
+    coarse_load : dict or None
+        Graded mesh refined at the predicted invasion (``problem.refined``): the first step end at
+        which fluid held pores outside the refined region, ``{"t_s", "n_pores"}`` (their
+        walls are meshed by coarse leaves there); a :class:`CoarseLoadWarning` is issued then,
+        once per run. None while it has not happened (or without such a mesh).
     """
 
     def __init__(self, problem: CoupledProblem, *, reuse_extractions: bool = True,
@@ -157,6 +164,7 @@ class CoupledRun:
         self.update_seconds = dict.fromkeys(("voxelise", "extract", "interface_rebuild"), 0.0)
         self.update_cpu_seconds = dict.fromkeys(self.update_seconds, 0.0)
         self.updater = make_updater(problem, self.extractions, StageClock(self.update_seconds, self.update_cpu_seconds))
+        self.coarse_load: dict | None = None
 
     # ---- the state at t, by part -----------------------------------------------------------
     @property
@@ -223,6 +231,8 @@ class CoupledRun:
             self.sim = carry_state(out.sim, out.network.network, out.sim_labels, out.network.labels)
             self.current = out.network
         self.step_index += 1
+        if self.coarse_load is None and self.problem.refined is not None:
+            self._check_coarse_load()
         rec = self._record(self.sim.state, out.displacement, out.output_forces, clock, time.perf_counter() - t_wall,
                            out.stats)
         for total, part in ((self.seconds, rec.seconds), (self.cpu_seconds, rec.cpu_seconds)):
@@ -268,6 +278,18 @@ class CoupledRun:
                 break
         stats = IterationStats(stop.n_iter, tuple(relax.residuals), tuple(relax.omegas), tuple(stop.ea))
         return _Outcome(sim, sim_labels, net_k, u1, v1, U1, loads.output, stats)
+
+    def _check_coarse_load(self) -> None:
+        """Warn (once) when fluid holds pores outside the graded mesh's refined region."""
+        out = invaded_outside(self.problem.refined, self.labels, self.sim.state.nw_saturation)
+        if len(out) == 0:
+            return
+        self.coarse_load = {"t_s": self.t, "n_pores": int(len(out))}
+        s = self.problem.options.solid
+        warnings.warn(f"at t = {self.t:g} s fluid holds {len(out)} pore(s) outside the graded mesh's refined region "
+                      f"(solid.refine = 'invaded' predicted the load elsewhere): their walls may lie on leaves of up "
+                      f"to {s.coarsen_max} voxels instead of {s.coarsen}-voxel blocks; at this rate use "
+                      "solid.refine = 'walls' or a uniform mesh", CoarseLoadWarning, stacklevel=3)
 
     def _record(self, state: FlowState, U: np.ndarray, F: np.ndarray, clock: StageClock, wall: float,
                 stats: IterationStats) -> ExchangeRecord:

@@ -28,11 +28,15 @@ from porefsi.solid.mesh import MeshResult, SolidMesh, mesh_solid
 from porefsi.solid.model import SolidModel
 
 __all__ = ["CoupledProblem", "build_problem", "build_solid", "extract_flow_network", "SolverChoiceWarning",
-           "predicted_invasion"]
+           "CoarseLoadWarning", "predicted_invasion"]
 
 
 class SolverChoiceWarning(UserWarning):
     """The solid got another linear solver than the one requested (a direct solve too large for the machine)."""
+
+
+class CoarseLoadWarning(UserWarning):
+    """Fluid entered a pore outside the graded mesh's refined region: its load sits on coarse leaves."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -57,6 +61,11 @@ class CoupledProblem:
         ``image`` when the image was read by :func:`porefsi.case.problem_from_case`).
     cpu_seconds : dict
         CPU time (``time.process_time``: this process, all threads) of the same stages, s.
+    refined : ndarray of bool, shape of the image, or None
+        Pore voxels the graded mesh resolves at its fine block because the load was predicted
+        there (``solid.refine = "invaded"``: :func:`predicted_invasion`); None when every pore wall
+        is meshed alike (a uniform mesh, or ``refine = "walls"``). The run warns
+        (:class:`CoarseLoadWarning`) when fluid enters a pore outside it.
     """
 
     image: VoxelImage
@@ -67,6 +76,7 @@ class CoupledProblem:
     options: CoupledOptions = dataclasses.field(default_factory=CoupledOptions)
     seconds: dict = dataclasses.field(default_factory=dict)
     cpu_seconds: dict = dataclasses.field(default_factory=dict)
+    refined: np.ndarray | None = None
 
     @property
     def network(self) -> Network:
@@ -169,11 +179,12 @@ def build_problem(image: VoxelImage, options: CoupledOptions | None = None) -> C
         ex = extract_flow_network(image, options.axis, options.network.conductance)
     with clock("mesh"):
         graded_invaded = options.solid.mesh == "graded" and options.solid.refine == "invaded"
-        refine = None
+        refine = loaded = None
         if graded_invaded:  # the loaded pores and the thin solid ligaments that carry their load
-            refine = ligament_region(image.phases != 0, predicted_invasion(ex, options), options.solid.ligaments)
+            loaded = predicted_invasion(ex, options)
+            refine = ligament_region(image.phases != 0, loaded, options.solid.ligaments)
         mres, model = build_solid(image, options.solid, refine)
     with clock("interface_build"):
         itf = options.interface.build(ex.network, ex.labels, mres.mesh, voxel_size=image.voxel_size,
                                       origin=image.origin, model=model)
-    return CoupledProblem(image, ex, mres, itf, model, options, clock.wall, clock.cpu)
+    return CoupledProblem(image, ex, mres, itf, model, options, clock.wall, clock.cpu, loaded)

@@ -99,11 +99,25 @@ def ligament_region(pore: np.ndarray, refine: np.ndarray, factor: float) -> np.n
     refine = refine & pore
     if factor <= 0 or not refine.any():
         return refine.copy()
-    other = pore & ~refine
-    if not other.any():
-        return refine.copy()
-    t = ndimage.distance_transform_edt(~refine) + ndimage.distance_transform_edt(~other)
-    return refine | (~pore & (t <= factor * mean_chord(refine)))
+    reach = factor * mean_chord(refine)
+    # Only a voxel within ``reach`` of ``refine`` can join, and only other pores within ``reach`` of
+    # such a voxel decide it: the distances computed on the box around ``refine`` grown by twice the
+    # reach are exact wherever they matter (a farther pore only makes t larger), at a fraction of
+    # the image's cost when the load is local.
+    box = _grown_box(refine, int(np.ceil(2 * reach)) + 1)
+    ref, other = refine[box], pore[box] & ~refine[box]
+    out = refine.copy()
+    if other.any():
+        t = ndimage.distance_transform_edt(~ref) + ndimage.distance_transform_edt(~other)
+        out[box] |= ~pore[box] & (t <= reach)
+    return out
+
+
+def _grown_box(mask: np.ndarray, margin: int) -> tuple[slice, ...]:
+    """Slices of the bounding box of ``mask``'s True voxels grown by ``margin`` voxels (clipped to the array)."""
+    idx = np.argwhere(mask)
+    lo, hi = np.maximum(idx.min(axis=0) - margin, 0), np.minimum(idx.max(axis=0) + margin + 1, mask.shape)
+    return tuple(slice(int(a), int(b)) for a, b in zip(lo, hi, strict=True))
 
 
 def leaf_levels(refine: np.ndarray, full: np.ndarray, n_levels: int, grading: float) -> np.ndarray:

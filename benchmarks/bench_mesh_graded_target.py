@@ -1,0 +1,153 @@
+"""Issue 16's solid target on three images in one process: uniform 4's error at <= uniform 6's CPU.
+
+Images (120^3 each; none is read by the tests):
+
+- ``berea_crop``: the 400^3 Berea cropped at voxel (20, 200, 40) (``--berea PATH``; the crop of
+  docs/stability.md (e) item 4, where the target was missed);
+- ``blobs``: a Gaussian random field (N(0, 1), seed 2026) smoothed over 4 voxels (periodic),
+  pore above its 78th percentile, 8 um voxels (item 4's blob medium);
+- ``sample``: the built-in 120^3 Berea sample.
+
+Every run is the speed-accuracy study's coupled run (``cases/speed_accuracy/case.toml``: 10 s of
+the paper's injection) with one solid setting changed, scored at 10 s against the image's uniform
+coarsen-2 solve (quasi-static, AMG-CG; the truth of ``bench_mesh_graded.py --image``) on the
+coarsen-2 nodes at multiples of 6 voxels, each run's FE field interpolated there. CPU: set-up +
+coupled loop, one thread. The truth is cached in ``--work`` (``truth`` phase: ~3 GiB, run it
+under the heavy-job lock); the ``runs`` phase then measures every image's runs in one process,
+so their costs share one load.
+
+Usage: ``python benchmarks/bench_mesh_graded_target.py truth|runs [--images NAME ...]
+[--runs NAME ...] [--berea PATH] [--work DIR] [--out FILE]``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy import ndimage  # noqa: E402
+
+from porefsi import load_case  # noqa: E402
+from porefsi.image.io import load_sample  # noqa: E402
+from porefsi.solid.interpolate import p1_interpolate  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_mesh_graded import _run, _study  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+RECIPE = {"mesh": "graded", "coarsen": 3, "coarsen_max": 12, "grading": 0.5, "refine": "invaded"}
+RUNS = {
+    "uniform3": {"coarsen": 3},
+    "uniform4": {"coarsen": 4},
+    "uniform6": {"coarsen": 6},
+    "graded_3_12": dict(RECIPE),
+    "graded_3_12_lig1": {**RECIPE, "ligaments": 1.0},
+}
+
+
+def image_npz(name: str, work: Path, berea: Path | None) -> Path:
+    """Write (once) the 120^3 image ``name`` as an npz the case can read; return its path."""
+    p = work / f"{name}.npz"
+    if p.exists():
+        return p
+    if name == "berea_crop":
+        if berea is None:
+            raise SystemExit("berea_crop needs --berea PATH/berea_icl_400.npz")
+        with np.load(berea) as d:
+            img, vs = d["image"][20:140, 200:320, 40:160].astype(np.uint8), float(d["voxel_size_m"])
+    elif name == "blobs":
+        f = ndimage.gaussian_filter(np.random.default_rng(2026).standard_normal((120, 120, 120)), 4, mode="wrap")
+        img, vs = (f > np.percentile(f, 78)).astype(np.uint8), 8e-6
+    elif name == "sample":
+        s = load_sample()
+        img, vs = s.phases.astype(np.uint8), float(s.voxel_size)
+    else:
+        raise SystemExit(f"unknown image {name!r}")
+    np.savez_compressed(p, image=img, voxel_size_m=vs)
+    return p
+
+
+def base_case(path: Path):
+    return load_case(REPO / "cases" / "speed_accuracy" / "case.toml").replace(name="target", image={"path": str(path)})
+
+
+def truth(sa, name: str, work: Path, berea: Path | None) -> dict:
+    """The image's uniform coarsen-2 solve at t_end on its evaluation points (cached)."""
+    p = work / f"truth_{name}.npz"
+    if p.exists():
+        with np.load(p) as z:
+            return {"X": z["X"], "u": z["u"], "meta": json.loads(str(z["meta"]))}
+    base = base_case(image_npz(name, work, berea))
+    t_end = float(base.drainage.t_end)
+    r2 = sa.run_variant(base.replace(name="c2", solid={"coarsen": 2, "linear_solver": "amg"},
+                                     coupling={"integrator": "static", "exchange_dt": t_end}))
+    if r2["status"] != "ok":
+        raise RuntimeError(f"truth of {name}: {r2['status']}")
+    idx = sa.eval_points(r2)
+    meta = {"n_nodes": r2["n_nodes"], "cpu_s": r2["cpu_s"], "load": os.getloadavg(),
+            "utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime())}
+    np.savez_compressed(p, X=r2["points"][idx], u=sa.at_time(r2, t_end)[idx], meta=np.array(json.dumps(meta)))
+    print(f"{name}: truth {meta}", flush=True)
+    return {"X": r2["points"][idx], "u": sa.at_time(r2, t_end)[idx], "meta": meta}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("phase", choices=("truth", "runs"))
+    ap.add_argument("--images", nargs="*", default=["berea_crop", "blobs", "sample"])
+    ap.add_argument("--runs", nargs="*", default=list(RUNS))
+    ap.add_argument("--extra", default=None, help="JSON dict name -> solid overrides, added to the runs")
+    ap.add_argument("--berea", type=Path, default=None)
+    ap.add_argument("--work", type=Path, default=REPO / "_graded_target")
+    ap.add_argument("--out", type=Path, default=None)
+    args = ap.parse_args(argv)
+    args.work.mkdir(parents=True, exist_ok=True)
+    sa = _study()
+    runs = {**RUNS, **(json.loads(args.extra) if args.extra else {})}
+    names = [r for r in args.runs if r in runs] + [r for r in runs if r not in RUNS]
+    out = {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "commit": _git_head(), "images": {}}
+    for name in args.images:
+        tr = truth(sa, name, args.work, args.berea)
+        if args.phase == "truth":
+            continue
+        base = base_case(image_npz(name, args.work, args.berea))
+        t_end = float(base.drainage.t_end)
+        rows = {}
+        for run in names:
+            res = _run(sa, base.replace(name=run, solid=runs[run]))
+            row = {"solid": runs[run], "status": res["status"], "cpu_s": res["cpu_s"], "load": os.getloadavg()}
+            if res["status"] == "ok":
+                u = p1_interpolate(res["mesh"], sa.at_time(res, t_end), tr["X"])[0]
+                row.update(n_nodes=res["n_nodes"], n_dofs=res["n_dofs"], leaf_counts=res["leaf_counts"],
+                           err_c2=sa.rel_l2([u - tr["u"]], [tr["u"]]),
+                           stage_cpu={k: round(v, 3) for k, v in res["stage_cpu_seconds"].items()})
+            rows[run] = row
+            print(name, run, {k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()
+                              if k not in ("solid", "stage_cpu")}, flush=True)
+        out["images"][name] = {"truth": tr["meta"], "runs": rows}
+        if args.out:
+            args.out.write_text(json.dumps(out, indent=1, default=float))
+    return 0
+
+
+def _git_head() -> str:
+    import subprocess
+
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True,
+                              check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+if __name__ == "__main__":
+    sys.exit(main())
