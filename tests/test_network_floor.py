@@ -15,7 +15,13 @@ from scipy import ndimage
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import VoxelImage
 from porefsi.network.extract import _distance_map, extract_network
-from porefsi.network.floor import FLOOR_PER_HYDRAULIC_RADIUS, MIN_RADIUS_VOXELS, hydraulic_radius, noise_floor
+from porefsi.network.floor import (
+    FLOOR_PER_HYDRAULIC_RADIUS,
+    MIN_RADIUS_VOXELS,
+    hydraulic_radius,
+    largest_ball_cap,
+    noise_floor,
+)
 
 VS = 1e-6
 
@@ -61,6 +67,24 @@ def test_noise_floor_is_the_rule():
     thin = np.zeros((9, 11, 6), np.uint8)
     thin[:, :, 2:4] = 1  # h = 1: below the resolution limit, the floor is 2 voxels
     assert noise_floor(VoxelImage(thin, VS)) == MIN_RADIUS_VOXELS == 2.0
+
+
+@pytest.mark.parametrize("width", [4, 10, 11])
+def test_a_slit_gets_pores_under_the_automatic_floor(width):
+    """In a slit L equals the largest ball's wall distance: the floor falls back to the largest ball.
+
+    ``c L + 1/2`` is above every ball of an even-width slit (no voxel centre on the mid-plane):
+    width 4 gives 2.36 against the largest ball's 2, width 10 gives 5.15 against 5.
+    """
+    slit = np.zeros((40, 24, width + 4), np.uint8)
+    slit[:, :, 2 : 2 + width] = 1
+    img = VoxelImage(slit, VS)
+    largest = np.sqrt(_distance_map(slit).max())
+    ext = extract_network(img)
+    want = min(noise_floor(img), largest)
+    assert ext.info.min_radius == pytest.approx(max(2.0, want), rel=1e-15)
+    assert ext.network.n_pores >= 2 and ext.network.n_throats >= 1
+    assert largest_ball_cap(7.0, 16) == 4.0 and largest_ball_cap(3.0, 16) == 3.0 and largest_ball_cap(3.0, 1) == 2.0
 
 
 def test_default_floor_keeps_the_pore_count_of_a_rock_upsampled_twice():

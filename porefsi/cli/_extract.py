@@ -84,7 +84,7 @@ def _add_extraction_args(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--min-radius", type=_min_radius, default=None, metavar="auto|VOXELS",
         help="noise floor: a pore must hold a maximal ball at least this many voxels in radius; 'auto' sets it "
-        "from the image (0.95 hydraulic radii from the wall, at least 2 voxels: the same pores at any voxel size); "
+        "from the image (0.93 hydraulic radii from the wall, at least 2 voxels: the same pores at any voxel size); "
         f"a number (>= 1) fixes it in voxels, lower to find pores only a few voxels wide; default {d['min_radius']}",
     )
     g.add_argument(

@@ -39,7 +39,7 @@ from porefsi.network._mb_conduits import (
     merge_shallow,
     subvoxel_radii,
 )
-from porefsi.network.floor import hydraulic_radius, noise_floor, resolve_min_radius
+from porefsi.network.floor import hydraulic_radius, largest_ball_cap, noise_floor, resolve_min_radius
 from porefsi.network.network import CONDUCTANCE_MODELS, Network
 
 __all__ = [
@@ -318,8 +318,11 @@ def _extract(holder: list, *, min_radius, extent, merge_ratio, conductance) -> E
     laps = _Laps()
     dt2 = _distance_map(image.phases)
     del image
+    max_d2 = int(dt2.max())
+    if rule == "auto":
+        min_radius = largest_ball_cap(min_radius, max_d2)
     laps("edt")
-    centre_idx, labels, counts = _pore_centres(dt2, min_radius, extent, merge_ratio, laps)
+    centre_idx, labels, counts = _pore_centres(dt2, max_d2, min_radius, extent, merge_ratio, laps)
     counts["flooded"] = _flood_regions(dt2, labels, centre_idx, n_pore)
     laps("flood")
     top = _pores_and_throats(shape, labels, dt2, centre_idx, merge_ratio, extent)
@@ -371,13 +374,12 @@ class _Laps:
         return self.seconds
 
 
-def _pore_centres(dt2, min_radius: float, extent: float, merge_ratio: float, laps: _Laps):
+def _pore_centres(dt2, max_d2: int, min_radius: float, extent: float, merge_ratio: float, laps: _Laps):
     """Stages 2-3: the maximal balls and their master/slave families.
 
     Returns the flat indices of the master-ball centres (the pores, largest first), the label
     image (all -1, int32) and the candidate and maximal ball counts.
     """
-    max_d2 = int(dt2.max())
     sqrt_tab = np.sqrt(np.arange(max_d2 + 1, dtype=np.float64))
     min_dt2 = max(1, math.ceil(min_radius * min_radius - 1e-9))
     labels = np.full(dt2.shape, -1, np.int32)
