@@ -8,10 +8,14 @@ runners of ``bench_extract.py``), and the script prints per tool:
 * CPU seconds of the extraction call and µs per voxel, and the ratio to the same tool's µs per
   voxel on the native (1x) image: the issue's target is porefsi <= 1.5 at 2x and 3x;
 * pore and throat counts and the pore count's ratio to the native one (target 0.85-1.15);
-* for porefsi, the network permeability (mean of x, y, z, shape-factor model) and its ratio to
-  the native one (target 0.9-1.1), and the same with the noise floor held at the native
-  image's in length (``min_radius = 1.5 f + 0.5`` voxels: a ball whose surface distance
-  ``sqrt(dt2) - 0.5`` reaches 1.5 native voxels, as ``min_radius = 2`` asks at 1x).
+* for porefsi, with the default noise floor (``min_radius="auto"``, a fraction of the image's
+  hydraulic radius: ``porefsi.network.floor``; its value in voxels is printed), the network
+  permeability (mean of x, y, z, shape-factor model) and its ratio to the native one (target
+  0.9-1.1); then pores and k with the old fixed floor ``min_radius = 2`` voxels ("2 vox"), and
+  with the floor held at the native image's in length by knowing ``f`` ("held",
+  ``min_radius = 1.5 f + 0.5`` voxels: a ball whose surface distance ``sqrt(dt2) - 0.5``
+  reaches 1.5 native voxels, as ``min_radius = 2`` asks at 1x). CPU, memory and stage times are
+  the default extraction's.
 
 Each rock is also upsampled *smoothly* (``upsample_smooth``: the trilinear signed distance,
 thresholded; porefsi only unless ``--smooth`` names peers): nearest-neighbour upsampling turns
@@ -80,17 +84,20 @@ def k_mean(net):
 
 base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 t = time.process_time()
-ext = extract_network(img)
+ext = extract_network(img)  # the default noise floor, min_radius="auto"
 cpu = time.process_time() - t
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 net = ext.network
 k, ks = k_mean(net)
 floor = 1.5 * f + 0.5
 ext2 = extract_network(img, min_radius=floor)
 k2, _ = k_mean(ext2.network)
-print(json.dumps(dict(cpu=cpu, base_kb=base, peak_kb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+ext3 = extract_network(img, min_radius=2.0)
+k3, _ = k_mean(ext3.network)
+print(json.dumps(dict(cpu=cpu, base_kb=base, peak_kb=peak,
     n_pores=net.n_pores, n_throats=net.n_throats, z=float(net.coordination.mean()), k_mD=k, k_axes=ks,
-    n_balls=ext.info.n_maximal_balls, n_scanned=ext.info.n_scanned_balls,
-    floor=floor, n_pores_floor=ext2.network.n_pores, k_floor=k2,
+    n_balls=ext.info.n_maximal_balls, n_scanned=ext.info.n_scanned_balls, auto_floor=ext.info.min_radius,
+    floor=floor, n_pores_floor=ext2.network.n_pores, k_floor=k2, n_pores_2vox=ext3.network.n_pores, k_2vox=k3,
     stages={s: round(v, 3) for s, v in ext.info.seconds.items()})))
 """
 
@@ -175,7 +182,10 @@ def _row(rock, f, tool, r, native):
     line = (f"{rock:32s} {f}x {tool:9s} {r['cpu']:8.2f} {us:7.3f} {us / (nat['us'] if nat else us):6.2f} "
             f"{r['n_pores']:7d} {ratio('n_pores'):6.2f} {r['n_throats']:7d}")
     if tool == "porefsi":
-        line += (f" {r['k_mD']:8.0f} {ratio('k_mD'):6.2f} | floor {r['floor']:.1f}: {r['n_pores_floor']:6d} "
+        line += (f" {r['k_mD']:8.0f} {ratio('k_mD'):6.2f} (auto floor {r['auto_floor']:.2f})"
+                 f" | 2 vox: {r['n_pores_2vox']:6d} {ratio('n_pores_2vox'):5.2f}"
+                 f" {r['k_2vox']:7.0f} {ratio('k_2vox'):5.2f}"
+                 f" | held {r['floor']:.1f}: {r['n_pores_floor']:6d} "
                  f"{ratio('n_pores_floor'):5.2f} {r['k_floor']:7.0f} {ratio('k_floor'):5.2f}"
                  f" | balls {r['n_balls']} scanned {r['n_scanned']}")
     return line

@@ -10,7 +10,8 @@ the labelled porosity, the median pore radius and the permeability (mean of x, y
 
 Usage::
 
-    python benchmarks/bench_resolution_geometry.py [--rocks sample berea] [--factors 1 2 3] [--crop 100]
+    python benchmarks/bench_resolution_geometry.py [--rocks sample berea blobs spheres] [--factors 1 2 3]
+        [--crop 100] [--floor auto|voxels|length]
 """
 
 from __future__ import annotations
@@ -84,7 +85,10 @@ def main(argv=None):
     ap.add_argument("--factors", nargs="+", type=int, default=[1, 2, 3])
     ap.add_argument("--crop", type=int, default=100)
     ap.add_argument("--data", type=Path, default=DATA)
-    ap.add_argument("--floor-length", action="store_true", help="min_radius = 1.5 f + 0.5 voxels")
+    ap.add_argument("--floor", choices=["auto", "voxels", "length"], default="auto",
+                    help="noise floor: auto (the default, from the image), voxels (min_radius = 2) or "
+                    "length (min_radius = 1.5 f + 0.5 voxels, held at the native length by knowing f)")
+    ap.add_argument("--floor-length", action="store_true", help="same as --floor length")
     args = ap.parse_args(argv)
     print(f"load {open('/proc/loadavg').read().split()[:3]}")
     for name, pore, vs in rocks(args.rocks, args.data, args.crop):
@@ -94,14 +98,16 @@ def main(argv=None):
         for f in args.factors:
             img = VoxelImage(upsample(pore, f), vs / f)
             t = time.process_time()
-            mr = 1.5 * f + 0.5 if args.floor_length else 2.0
+            rule = "length" if args.floor_length else args.floor
+            mr = {"auto": "auto", "voxels": 2.0, "length": 1.5 * f + 0.5}[rule]
             ext = extract_network(img, min_radius=mr)
             cpu = time.process_time() - t
             net = ext.network
             k, ks = k_mean(net)
             row = dict(pores=net.n_pores, throats=net.n_throats, phi=ext.porosity, k=k,
                        Rp_med=np.median(net.pore_radius) / vs, rt_med=np.median(net.throat_radius) / vs)
-            line = (f"{name[:24]:24s} {f}x cpu {cpu:6.1f}s pores {row['pores']:5d} throats {row['throats']:5d} "
+            line = (f"{name[:24]:24s} {f}x floor {ext.info.min_radius:5.2f} cpu {cpu:6.1f}s "
+                    f"pores {row['pores']:5d} throats {row['throats']:5d} "
                     f"phi_lab {row['phi']:.4f} Rp_med {row['Rp_med']:.3f} rt_med {row['rt_med']:.3f} (native vox) "
                     f"k {k:7.0f} ({', '.join(f'{x:.0f}' for x in ks)})")
             if base is None:

@@ -173,7 +173,8 @@ def test_extraction_defaults_in_help_match_extract_network(capsys):
         out = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
         for opt, k in (("--min-radius", "min_radius"), ("--extent", "extent"), ("--merge-ratio", "merge_ratio")):
             assert opt in out, (cmd, opt)
-            assert f"default {EXTRACT_DEFAULTS[k]:g}" in out, (cmd, opt)
+            v = EXTRACT_DEFAULTS[k]
+            assert (f"default {v:g}" if isinstance(v, float) else f"default {v}") in out, (cmd, opt)
 
 
 def _thin_channel_file(tmp_path):
@@ -235,8 +236,9 @@ def test_extraction_options_reach_extract_network(capsys):
 @pytest.mark.parametrize(
     "opt,value,words",
     [
-        ("--min-radius", "0.5", (">= 1",)),
-        ("--min-radius", "nan", ("positive finite",)),
+        ("--min-radius", "0.5", (">= 1", "'auto'")),
+        ("--min-radius", "nan", ("finite", "'auto'")),
+        ("--min-radius", "automatic", ("'automatic'", "'auto'")),
         ("--extent", "0", ("positive finite",)),
         ("--extent", "0.9", (">= 1",)),
         ("--merge-ratio", "1.5", ("(0, 1]",)),

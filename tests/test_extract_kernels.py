@@ -54,6 +54,12 @@ def test_sq_edt_cap_is_exact_below_the_cap(img, cap):
     np.testing.assert_array_equal(_edt(img, np.uint16, cap), want)
 
 
+@SETTINGS
+@given(images(max_side=9, p_min=0.1, p_max=0.9))
+def test_pore_solid_faces_equals_twin(img):
+    assert int(kern._pore_solid_faces(img)) == ref.pore_solid_faces(img)
+
+
 def test_sq_edt_line_without_solid_is_inf():
     img = np.ones((3, 1, 1), np.uint8)
     assert np.all(_edt(img, np.int32) == kern.INF)

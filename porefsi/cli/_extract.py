@@ -33,7 +33,7 @@ _SAMPLE = "built-in sample berea120"
 
 #: Defaults of :func:`porefsi.network.extract.extract_network`'s tuning parameters, repeated for the
 #: ``--help`` text so that building the parser does not import numba (tests check they match).
-EXTRACT_DEFAULTS = {"min_radius": 2.0, "extent": 2.0, "merge_ratio": 0.9}
+EXTRACT_DEFAULTS = {"min_radius": "auto", "extent": 2.0, "merge_ratio": 0.9}
 
 #: Attribute names of the extraction options :func:`_add_extraction_args` adds.
 EXTRACT_OPTIONS = tuple(EXTRACT_DEFAULTS)
@@ -67,14 +67,25 @@ def _at_least_one(text: str) -> float:
     return x
 
 
+def _min_radius(text: str) -> str | float:
+    """Argparse type: ``auto`` or a finite number >= 1."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return _at_least_one(text)
+    except _ArgumentError:
+        raise _ArgumentError(f"expected 'auto' or a finite number >= 1, got {text!r}") from None
+
+
 def _add_extraction_args(p: argparse.ArgumentParser) -> None:
     d = EXTRACT_DEFAULTS
     g = p.add_argument_group(
         "extraction options (images only; see porefsi.network.extract.extract_network)")
     g.add_argument(
-        "--min-radius", type=_at_least_one, default=None, metavar="VOXELS",
-        help="noise floor: a pore must hold a maximal ball at least this many voxels in radius; "
-        f"lower it (>= 1) to find pores in images whose pores are only a few voxels wide; default {d['min_radius']:g}",
+        "--min-radius", type=_min_radius, default=None, metavar="auto|VOXELS",
+        help="noise floor: a pore must hold a maximal ball at least this many voxels in radius; 'auto' sets it "
+        "from the image (0.93 hydraulic radii from the wall, at least 2 voxels: the same pores at any voxel size); "
+        f"a number (>= 1) fixes it in voxels, lower to find pores only a few voxels wide; default {d['min_radius']}",
     )
     g.add_argument(
         "--extent", type=_at_least_one, default=None, metavar="RADII",
@@ -178,6 +189,7 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
         "connected_porosity": connected_porosity,
         "network_porosity": float(ext.porosity),
         "min_radius_voxels": ext.info.min_radius,
+        "min_radius_rule": ext.info.min_radius_rule,
         "extent_radii": ext.info.extent,
         "merge_ratio": ext.info.merge_ratio,
         "seconds_read": t_read,

@@ -2,7 +2,7 @@
 
 The kernels live in one module per concept (kept under ~500 lines each):
 
-* :mod:`porefsi.network._mb_edt`: squared Euclidean distance transform;
+* :mod:`porefsi.network._mb_edt`: squared Euclidean distance transform, pore-solid faces;
 * :mod:`porefsi.network._mb_balls`: maximal balls and the master/slave hierarchy;
 * :mod:`porefsi.network._mb_regions`: voxel regions (flood), interfaces (throats), pore stats.
 
@@ -12,7 +12,7 @@ Every kernel takes arrays and scalars only and has a slow pure-Python twin in
 """
 
 from porefsi.network._mb_balls import _families, _isqrt, _maximal_balls, ball_offsets, ball_reach_table
-from porefsi.network._mb_edt import CAP16, INF, _envelope_line, _sq_edt
+from porefsi.network._mb_edt import CAP16, INF, _envelope_line, _pore_solid_faces, _sq_edt
 from porefsi.network._mb_regions import _flood, _interfaces, _pore_stats, _relabel
 
 __all__ = [
@@ -24,6 +24,7 @@ __all__ = [
     "_interfaces",
     "_isqrt",
     "_maximal_balls",
+    "_pore_solid_faces",
     "_pore_stats",
     "_relabel",
     "_sq_edt",

@@ -1,6 +1,6 @@
-"""Squared Euclidean distance transform kernel of the maximal-ball extraction (private).
+"""Squared Euclidean distance transform and pore-surface kernels of the maximal-ball extraction (private).
 
-Twin: ``tests/reference/extract_ref.py::sq_edt``.
+Twins: ``tests/reference/extract_ref.py::sq_edt`` and ``::pore_solid_faces``.
 """
 
 from __future__ import annotations
@@ -114,3 +114,36 @@ def _sq_edt(pore, out, cap):
 def _scratch(m):
     """Work arrays of one line of length ``m`` for :func:`_envelope_line`."""
     return np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m + 1, np.float64)
+
+
+@jit(parallel=True)
+def _pore_solid_faces(pore):
+    """Number of voxel faces shared by a pore voxel and a solid voxel (the staircase's area, voxel faces).
+
+    Faces on the box boundary are not counted (outside the image is not solid, as in the distance
+    map). Slabs along the first axis are counted on numba's threads and summed.
+
+    Parameters
+    ----------
+    pore : ndarray of uint8, shape (nx, ny, nz)
+        1 = pore, 0 = solid.
+
+    Returns
+    -------
+    int
+    """
+    nx, ny, nz = pore.shape
+    per = np.zeros(nx, np.int64)
+    for i in prange(nx):
+        n = 0
+        for j in range(ny):
+            for k in range(nz):
+                a = pore[i, j, k] != 0
+                if i + 1 < nx and a != (pore[i + 1, j, k] != 0):
+                    n += 1
+                if j + 1 < ny and a != (pore[i, j + 1, k] != 0):
+                    n += 1
+                if k + 1 < nz and a != (pore[i, j, k + 1] != 0):
+                    n += 1
+        per[i] = n
+    return per.sum()

@@ -31,6 +31,19 @@ def sq_edt(pore):
     return out
 
 
+def pore_solid_faces(pore):
+    """Voxel faces between a pore and a solid voxel inside the box (explicit loop over voxel pairs)."""
+    n = 0
+    for ijk in np.argwhere(pore != 0):
+        for ax in range(3):
+            for step in (-1, 1):
+                q = ijk.copy()
+                q[ax] += step
+                if 0 <= q[ax] < pore.shape[ax] and pore[tuple(q)] == 0:
+                    n += 1
+    return n
+
+
 def _ball(c, d2, shape=None):
     """Lattice points x with |x - c|^2 < d2 (inside ``shape`` when given)."""
     r = math.isqrt(max(d2 - 1, 0))
