@@ -49,13 +49,19 @@ def test_state_written_before_drainage_options_resumes_to_that_versions_result(n
         while e.t < t:
             e.step(t)
         assert sim.state.t == t
-    np.testing.assert_array_equal(sim.invasion_time(), _floats(ref["invasion_time"]))
+    # Same events in the same order (counters, invaded set, record count); the floats (times too) to
+    # round-off: the reference was made with other numpy/scipy/numba builds, whose sums and
+    # sparse solves may differ in the last bits (seen: 2e-14 relative on a fresh install).
+    same = {"rtol": 1e-11, "atol": 0.0}
+    t_inv = sim.invasion_time()
+    np.testing.assert_array_equal(np.isnan(t_inv), np.isnan(_floats(ref["invasion_time"])))
+    np.testing.assert_allclose(t_inv, _floats(ref["invasion_time"]), **same)
     h = sim.history()
-    np.testing.assert_array_equal(h["time_s"], ref["time"])
-    np.testing.assert_array_equal(h["sw"], ref["sw"])
-    np.testing.assert_array_equal(h["inlet_pressure_pa"], _floats(ref["inlet_pressure"]))
+    np.testing.assert_allclose(h["time_s"], ref["time"], **same)
+    np.testing.assert_allclose(h["sw"], ref["sw"], **same)
+    np.testing.assert_allclose(h["inlet_pressure_pa"], _floats(ref["inlet_pressure"]), **same)
     assert {k: sim.counters[k] for k in ref["counters"]} == ref["counters"]
-    assert sim.breakthrough_time == ref["breakthrough_time"]
+    assert sim.breakthrough_time == pytest.approx(ref["breakthrough_time"], rel=1e-11)
 
 
 def test_standalone_checkpoint_written_before_drainage_options_is_refused_in_one_line(tmp_path):
