@@ -18,7 +18,7 @@ from porefsi.errors import InputError, NetworkError
 from porefsi.image import VoxelImage
 from porefsi.stokes import extrapolated_permeability, extrapolation_mode, sampled_permeability, voxel_permeability
 from porefsi.stokes import sampled as sm
-from porefsi.stokes._refine_grid import refined_memory_bytes
+from porefsi.stokes._refine_grid import pore_faces, refined_memory_bytes
 from porefsi.stokes.sampled import choose_blocks, pool_blocks
 
 
@@ -113,7 +113,7 @@ def test_bad_inputs_and_memory_refusals():
         sampled_permeability(img, "x", block=8, max_memory=1e5)
     block_need = refined_memory_bytes((8, 8, 8), 512, 3, 0, 2)  # any 8^3 block, all pore, refined 3
     big = _blobs(40)
-    assert refined_memory_bytes(big.shape, int(big.pore.sum()), 1, 0, 2) > 1.01 * block_need
+    assert refined_memory_bytes(big.shape, int(big.pore.sum()), 1, 0, 2, pore_faces(big.pore)) > 1.01 * block_need
     with pytest.raises(InputError, match=r"the native solve of the 40x40x40 image needs .* pass native="):
         sampled_permeability(big, "x", block=8, max_memory=block_need * 1.01)
     with pytest.raises(InputError, match="does not fit"):
@@ -122,7 +122,7 @@ def test_bad_inputs_and_memory_refusals():
 
 def test_extrapolation_mode_picks_sampled_when_the_whole_refinement_does_not_fit():
     img = _blobs(16)
-    need = refined_memory_bytes(img.shape, int(img.pore.sum()), 3, 0, 2)
+    need = refined_memory_bytes(img.shape, int(img.pore.sum()), 3, 0, 2, pore_faces(img.pore))
     assert extrapolation_mode(img, "x", 3, 2, max_memory=need * 1.01) == "whole"
     assert extrapolation_mode(img, "x", 3, 2, max_memory=need * 0.99) == "sampled"
     assert extrapolation_mode(img, "x", 3, 2, sampled=True) == "sampled"
@@ -157,11 +157,11 @@ def test_cli_extrapolate_samples_blocks_when_the_whole_refinement_does_not_fit(t
     path = tmp_path / "blobs.npz"
     img = _blobs(16)
     np.savez(path, image=img.phases, voxel_size_m=1e-6)
-    whole = refined_memory_bytes(img.shape, int(img.pore.sum()), 2, 0, 2)
-    native = refined_memory_bytes(img.shape, int(img.pore.sum()), 1, 0, 2)
-    assert native < 0.5 * whole
+    whole = refined_memory_bytes(img.shape, int(img.pore.sum()), 2, 0, 2, pore_faces(img.pore))
+    native = refined_memory_bytes(img.shape, int(img.pore.sum()), 1, 0, 2, pore_faces(img.pore))
+    assert native < whole
     for mod in (rg, sm):
-        monkeypatch.setattr(mod, "available_memory_bytes", lambda: 0.5 * whole)
+        monkeypatch.setattr(mod, "available_memory_bytes", lambda: 0.5 * (native + whole))
     args = ["permeability", str(path), "--method", "voxel", "--extrapolate", "--refine", "2", "--blocks", "2",
             "--block", "8", "--json"]
     assert main(args) == 0

@@ -41,7 +41,7 @@ from porefsi.image.voxel_image import AXES, VoxelImage, axis_index
 from porefsi.stokes._domain import flowing_clusters, mirrored, with_buffers
 from porefsi.stokes._grid import WALLS as _WALLS
 from porefsi.stokes._grid import StaggeredSystem, assemble, with_neighbours
-from porefsi.stokes._refine_grid import check_refine, check_refined_memory, upsample_mask
+from porefsi.stokes._refine_grid import check_refine, check_refined_memory, pore_faces, upsample_mask
 from porefsi.stokes._solve import log as _solve_log
 from porefsi.stokes._solve import pressure_preconditioner, solve
 from porefsi.units import MILLIDARCY
@@ -296,7 +296,7 @@ def voxel_permeability(image: VoxelImage, axis="x", options: StokesOptions | Non
     ax = axis_index(axis)
     if opts.refine > 1:
         check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), opts.refine, ax, opts.buffer_layers,
-                             opts.max_memory)
+                             opts.max_memory, n_faces=pore_faces(image.pore))
     system, frame, (connected, n_clusters) = _build_system(image, ax, opts)
     ml = pressure_preconditioner(system)  # before the neighbour table: lower peak memory
     system = with_neighbours(system)

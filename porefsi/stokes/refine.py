@@ -28,7 +28,7 @@ from scipy.optimize import brentq
 
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import axis_index
-from porefsi.stokes._refine_grid import check_refine, check_refined_memory
+from porefsi.stokes._refine_grid import check_refine, check_refined_memory, pore_faces
 from porefsi.stokes.permeability import StokesOptions, StokesResult, stokes_options, voxel_permeability
 from porefsi.units import MILLIDARCY
 
@@ -224,7 +224,7 @@ def extrapolated_permeability(image, axis="x", levels=(1, 2, 3), options: Stokes
     if not hasattr(image, "pore"):
         raise InputError(f"expected a VoxelImage, got {type(image).__name__}; read one with porefsi.read_image")
     check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), levels[-1], axis_index(axis),
-                         opts.buffer_layers, opts.max_memory)
+                         opts.buffer_layers, opts.max_memory, n_faces=pore_faces(image.pore))
     results: list[StokesResult] = [voxel_permeability(image, axis, opts, refine=f) for f in levels]
     ext = richardson(levels, [r.k_mD for r in results])
     native = ext.error_at(1) if levels[0] == 1 else float("nan")

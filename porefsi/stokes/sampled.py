@@ -59,6 +59,7 @@ from porefsi.stokes._refine_grid import (
     available_memory_bytes,
     check_refine,
     check_refined_memory,
+    pore_faces,
     refined_memory_bytes,
 )
 from porefsi.stokes.permeability import StokesOptions, stokes_options, voxel_permeability
@@ -390,7 +391,8 @@ def _check_block_memory(side: int, porosity: float, f: int, ax: int, opts: Stoke
 
 def _check_native_memory(image: VoxelImage, ax: int, opts: StokesOptions) -> None:
     """Refuse (one line) a whole-image native solve whose estimate exceeds the memory budget."""
-    need = refined_memory_bytes(image.shape, int(np.count_nonzero(image.pore)), 1, ax, opts.buffer_layers)
+    need = refined_memory_bytes(image.shape, int(np.count_nonzero(image.pore)), 1, ax, opts.buffer_layers,
+                                pore_faces(image.pore))
     have = available_memory_bytes() if opts.max_memory is None else float(opts.max_memory)
     if need > have:
         raise InputError(f"the native solve of the {'x'.join(map(str, image.shape))} image needs ~{need / 2**30:.2f} "
@@ -407,7 +409,8 @@ def extrapolation_mode(image: VoxelImage, axis, top: int, buffer: int, sampled: 
     if sampled:
         return "sampled"
     try:
-        check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), top, axis_index(axis), buffer, max_memory)
+        check_refined_memory(image.shape, int(np.count_nonzero(image.pore)), top, axis_index(axis), buffer, max_memory,
+                             n_faces=pore_faces(image.pore))
     except InputError:
         return "sampled"
     return "whole"
