@@ -14,7 +14,8 @@ coarsen-2 solve (quasi-static, AMG-CG; the truth of ``bench_mesh_graded.py --ima
 coarsen-2 nodes at multiples of 6 voxels, each run's FE field interpolated there. CPU: set-up +
 coupled loop, one thread. The truth is cached in ``--work`` (``truth`` phase: ~3 GiB, run it
 under the heavy-job lock); the ``runs`` phase then measures every image's runs in one process,
-so their costs share one load.
+so their costs share one load; a run under 10 CPU-s is timed ``--repeat`` times (default 3) and
+its least CPU time kept (the machine is shared: single timings of a 3 s run varied 1.5x).
 
 Usage: ``python benchmarks/bench_mesh_graded_target.py truth|runs [--images NAME ...]
 [--runs NAME ...] [--berea PATH] [--work DIR] [--out FILE]``.
@@ -109,6 +110,7 @@ def main(argv=None) -> int:
     ap.add_argument("--berea", type=Path, default=None)
     ap.add_argument("--work", type=Path, default=REPO / "_graded_target")
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--repeat", type=int, default=3, help="runs under 10 CPU-s are timed this many times (min kept)")
     args = ap.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
     sa = _study()
@@ -124,7 +126,11 @@ def main(argv=None) -> int:
         rows = {}
         for run in names:
             res = _run(sa, base.replace(name=run, solid=runs[run]))
-            row = {"solid": runs[run], "status": res["status"], "cpu_s": res["cpu_s"], "load": os.getloadavg()}
+            cpu = [res["cpu_s"]]
+            while res["status"] == "ok" and res["cpu_s"] < 10.0 and len(cpu) < args.repeat:
+                cpu.append(sa.run_variant(base.replace(name=run, solid=runs[run]))["cpu_s"])
+            row = {"solid": runs[run], "status": res["status"], "cpu_s": min(cpu), "cpu_s_all": cpu,
+                   "load": os.getloadavg()}
             if res["status"] == "ok":
                 u = p1_interpolate(res["mesh"], sa.at_time(res, t_end), tr["X"])[0]
                 row.update(n_nodes=res["n_nodes"], n_dofs=res["n_dofs"], leaf_counts=res["leaf_counts"],

@@ -325,7 +325,7 @@ def _ligament_region_whole_image(pore, refine, factor):
 
 @pytest.mark.parametrize("factor", [0.5, 1.0, 2.0])
 def test_ligament_region_on_its_box_equals_the_whole_image(factor):
-    """The distances are computed on the box around the refined pores grown by twice the reach: the
+    """The distances are computed on the box around the refined pores grown by the reach: the
     region is voxel for voxel the whole-image one (blob media, a local and a spread refined set,
     pores just outside the box included)."""
     from porefsi.solid.graded import ligament_region

@@ -100,11 +100,11 @@ def ligament_region(pore: np.ndarray, refine: np.ndarray, factor: float) -> np.n
     if factor <= 0 or not refine.any():
         return refine.copy()
     reach = factor * mean_chord(refine)
-    # Only a voxel within ``reach`` of ``refine`` can join, and only other pores within ``reach`` of
-    # such a voxel decide it: the distances computed on the box around ``refine`` grown by twice the
-    # reach are exact wherever they matter (a farther pore only makes t larger), at a fraction of
-    # the image's cost when the load is local.
-    box = _grown_box(refine, int(np.ceil(2 * reach)) + 1)
+    # A voxel v joins when d_R(v) + d_P(v) <= reach: v and its nearest other pore voxel p then lie
+    # within ``reach`` of a refine voxel (|p - r| <= d_P + d_R), so both distances computed on the
+    # box around ``refine`` grown by the reach are exact wherever they decide (a pore outside it can
+    # only be farther than the reach allows), at a fraction of the image's cost when the load is local.
+    box = _grown_box(refine, int(np.ceil(reach)) + 1)
     ref, other = refine[box], pore[box] & ~refine[box]
     out = refine.copy()
     if other.any():
