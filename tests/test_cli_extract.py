@@ -248,6 +248,10 @@ def test_extraction_options_reach_extract_network(capsys):
     s = _json(capsys)
     assert (s["n_pores"], s["n_throats"]) == (ref.n_pores, ref.n_throats)
     assert (s["min_radius_voxels"], s["extent_radii"], s["merge_ratio"]) == (1.5, 8.0, 0.5)
+    assert s["min_radius_rule"] == "voxels"
+    assert main(["extract", "--min-radius", "auto", "--json"]) == 0
+    a = _json(capsys)
+    assert a["min_radius_rule"] == "auto" and a["n_pores"] == default.n_pores  # the sample's own floor is 2 voxels
     assert main(["permeability", *argv]) == 0
     k = _json(capsys)
     assert k["n_pores"] == ref.n_pores
