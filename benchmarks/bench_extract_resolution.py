@@ -154,7 +154,7 @@ def rocks(names, data: Path, crop: int):
             d = np.load(p)
             a, vs = d["image"], float(d["voxel_size_m"])
             for o in (0,):
-                yield f"Berea {crop}^3 at {o}", np.ascontiguousarray(a[o:o + crop, o:o + crop, o:o + crop]), vs
+                yield f"Berea {crop}^3 at {o}", np.ascontiguousarray(a[o : o + crop, o : o + crop, o : o + crop]), vs
             # the same sizes at the native resolution: per-voxel cost at equal image size (cache
             # effects make a 2 M-voxel image cheaper per voxel than a 60 M-voxel one)
             for m in (3,):
@@ -167,8 +167,11 @@ def rocks(names, data: Path, crop: int):
     if "blob-scales" in names:
         # one image size, pore radii x1, x2, x3 in voxels: the radius effect without the size effect
         for sigma in (4.0, 8.0, 12.0):
-            yield (f"blobs 240^3 sigma {sigma:g} (native, radii x{sigma / 4:g})",
-                   blobs(n=240, porosity=0.3, sigma=sigma).astype(np.uint8), 5.345e-6)
+            yield (
+                f"blobs 240^3 sigma {sigma:g} (native, radii x{sigma / 4:g})",
+                blobs(n=240, porosity=0.3, sigma=sigma).astype(np.uint8),
+                5.345e-6,
+            )
 
 
 def _row(rock, f, tool, r, native):
@@ -179,15 +182,19 @@ def _row(rock, f, tool, r, native):
     def ratio(key):
         return r[key] / nat[key] if nat and nat.get(key) else float("nan")
 
-    line = (f"{rock:32s} {f}x {tool:9s} {r['cpu']:8.2f} {us:7.3f} {us / (nat['us'] if nat else us):6.2f} "
-            f"{r['n_pores']:7d} {ratio('n_pores'):6.2f} {r['n_throats']:7d}")
+    line = (
+        f"{rock:32s} {f}x {tool:9s} {r['cpu']:8.2f} {us:7.3f} {us / (nat['us'] if nat else us):6.2f} "
+        f"{r['n_pores']:7d} {ratio('n_pores'):6.2f} {r['n_throats']:7d}"
+    )
     if tool == "porefsi":
-        line += (f" {r['k_mD']:8.0f} {ratio('k_mD'):6.2f} (auto floor {r['auto_floor']:.2f})"
-                 f" | 2 vox: {r['n_pores_2vox']:6d} {ratio('n_pores_2vox'):5.2f}"
-                 f" {r['k_2vox']:7.0f} {ratio('k_2vox'):5.2f}"
-                 f" | held {r['floor']:.1f}: {r['n_pores_floor']:6d} "
-                 f"{ratio('n_pores_floor'):5.2f} {r['k_floor']:7.0f} {ratio('k_floor'):5.2f}"
-                 f" | balls {r['n_balls']} scanned {r['n_scanned']}")
+        line += (
+            f" {r['k_mD']:8.0f} {ratio('k_mD'):6.2f} (auto floor {r['auto_floor']:.2f})"
+            f" | 2 vox: {r['n_pores_2vox']:6d} {ratio('n_pores_2vox'):5.2f}"
+            f" {r['k_2vox']:7.0f} {ratio('k_2vox'):5.2f}"
+            f" | held {r['floor']:.1f}: {r['n_pores_floor']:6d} "
+            f"{ratio('n_pores_floor'):5.2f} {r['k_floor']:7.0f} {ratio('k_floor'):5.2f}"
+            f" | balls {r['n_balls']} scanned {r['n_scanned']}"
+        )
     return line
 
 
@@ -218,16 +225,30 @@ def _rock_rows(rock, pore, vs, up, tools, args, tmp: Path, factors) -> list:
 
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--rocks", nargs="+", default=["sample", "berea", "blobs", "spheres"],
-                   choices=["sample", "berea", "blobs", "spheres", "blob-scales"])
+    p.add_argument(
+        "--rocks",
+        nargs="+",
+        default=["sample", "berea", "blobs", "spheres"],
+        choices=["sample", "berea", "blobs", "spheres", "blob-scales"],
+    )
     p.add_argument("--factors", nargs="+", type=int, default=[1, 2, 3])
     p.add_argument("--tools", nargs="+", default=list(TOOLS), choices=list(TOOLS))
-    p.add_argument("--peer-factors", nargs="+", type=int, default=[1, 3],
-                   help="factors the peers run at (porefsi runs every --factors); default 1 3")
+    p.add_argument(
+        "--peer-factors",
+        nargs="+",
+        type=int,
+        default=[1, 3],
+        help="factors the peers run at (porefsi runs every --factors); default 1 3",
+    )
     p.add_argument("--data", type=Path, default=DATA, help="folder holding berea_icl_400.npz")
     p.add_argument("--crop", type=int, default=133, help="Berea crop side, voxels (default 133: 133 x 3 = 399)")
-    p.add_argument("--smooth", nargs="*", default=["porefsi"], choices=list(TOOLS),
-                   help="tools also run on the smooth upsampling (upsample_smooth); default porefsi")
+    p.add_argument(
+        "--smooth",
+        nargs="*",
+        default=["porefsi"],
+        choices=list(TOOLS),
+        help="tools also run on the smooth upsampling (upsample_smooth); default porefsi",
+    )
     p.add_argument("--peers-python", default=None)
     p.add_argument("--json", default=None, help="also write every result to this file")
     args = p.parse_args(argv)
@@ -236,8 +257,10 @@ def main(argv=None) -> dict:
     else:
         args.peers_reason = ""
     print(f"load average before: {open('/proc/loadavg').read().split()[:3]}")
-    print(f"{'rock':32s} f  {'tool':9s} {'CPU s':>8s} {'us/vox':>7s} {'/1x':>6s} {'pores':>7s} {'/1x':>6s} "
-          f"{'throats':>7s} {'k mD':>8s} {'/1x':>6s}")
+    print(
+        f"{'rock':32s} f  {'tool':9s} {'CPU s':>8s} {'us/vox':>7s} {'/1x':>6s} {'pores':>7s} {'/1x':>6s} "
+        f"{'throats':>7s} {'k mD':>8s} {'/1x':>6s}"
+    )
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for rock0, pore, vs in rocks(args.rocks, args.data, args.crop):

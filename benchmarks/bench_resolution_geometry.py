@@ -50,8 +50,13 @@ def throat_table(ext):
     net, s = ext.network, ext.sections
     L = net.throat_length + net.throat_pore_length.sum(axis=1)
     return {
-        "r_t": net.throat_radius, "A": s["area"], "A_faces": s["face_area"], "G": net.throat_shape_factor,
-        "P_wall": s["wall_perimeter"], "L": L, "f_throat": net.throat_duct_fraction[:, 1],
+        "r_t": net.throat_radius,
+        "A": s["area"],
+        "A_faces": s["face_area"],
+        "G": net.throat_shape_factor,
+        "P_wall": s["wall_perimeter"],
+        "L": L,
+        "f_throat": net.throat_duct_fraction[:, 1],
         "r_over_sqrtA": net.throat_radius / np.sqrt(s["area"]),
     }
 
@@ -60,7 +65,7 @@ def match(ext1, extf, f):
     """(native throat index, fine throat index) pairs of matched throats."""
     lab1 = ext1.labels
     netf = extf.network
-    cf = ((netf.pore_coords - netf.origin) / netf.voxel_size - 0.5)  # fine voxel coords
+    cf = (netf.pore_coords - netf.origin) / netf.voxel_size - 0.5  # fine voxel coords
     c1 = np.floor(cf / f + 1e-9).astype(int)
     c1 = np.clip(c1, 0, np.array(lab1.shape) - 1)
     pmap = lab1[c1[:, 0], c1[:, 1], c1[:, 2]]
@@ -85,9 +90,13 @@ def main(argv=None):
     ap.add_argument("--factors", nargs="+", type=int, default=[1, 2, 3])
     ap.add_argument("--crop", type=int, default=100)
     ap.add_argument("--data", type=Path, default=DATA)
-    ap.add_argument("--floor", choices=["auto", "voxels", "length"], default="auto",
-                    help="noise floor: auto (the default, from the image), voxels (min_radius = 2) or "
-                    "length (min_radius = 1.5 f + 0.5 voxels, held at the native length by knowing f)")
+    ap.add_argument(
+        "--floor",
+        choices=["auto", "voxels", "length"],
+        default="auto",
+        help="noise floor: auto (the default, from the image), voxels (min_radius = 2) or "
+        "length (min_radius = 1.5 f + 0.5 voxels, held at the native length by knowing f)",
+    )
     ap.add_argument("--floor-length", action="store_true", help="same as --floor length")
     args = ap.parse_args(argv)
     print(f"load {open('/proc/loadavg').read().split()[:3]}")
@@ -104,12 +113,20 @@ def main(argv=None):
             cpu = time.process_time() - t
             net = ext.network
             k, ks = k_mean(net)
-            row = dict(pores=net.n_pores, throats=net.n_throats, phi=ext.porosity, k=k,
-                       Rp_med=np.median(net.pore_radius) / vs, rt_med=np.median(net.throat_radius) / vs)
-            line = (f"{name[:24]:24s} {f}x floor {ext.info.min_radius:5.2f} cpu {cpu:6.1f}s "
-                    f"pores {row['pores']:5d} throats {row['throats']:5d} "
-                    f"phi_lab {row['phi']:.4f} Rp_med {row['Rp_med']:.3f} rt_med {row['rt_med']:.3f} (native vox) "
-                    f"k {k:7.0f} ({', '.join(f'{x:.0f}' for x in ks)})")
+            row = dict(
+                pores=net.n_pores,
+                throats=net.n_throats,
+                phi=ext.porosity,
+                k=k,
+                Rp_med=np.median(net.pore_radius) / vs,
+                rt_med=np.median(net.throat_radius) / vs,
+            )
+            line = (
+                f"{name[:24]:24s} {f}x floor {ext.info.min_radius:5.2f} cpu {cpu:6.1f}s "
+                f"pores {row['pores']:5d} throats {row['throats']:5d} "
+                f"phi_lab {row['phi']:.4f} Rp_med {row['Rp_med']:.3f} rt_med {row['rt_med']:.3f} (native vox) "
+                f"k {k:7.0f} ({', '.join(f'{x:.0f}' for x in ks)})"
+            )
             if base is None:
                 base = (ext, row)
                 print(line)

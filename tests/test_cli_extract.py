@@ -61,12 +61,32 @@ def test_help_and_version(capsys):
 
 def test_extract_json_and_outputs(image_file, tmp_path, capsys):
     net_path, vtp, prefix = tmp_path / "net.npz", tmp_path / "net.vtp", tmp_path / "pn"
-    argv = ["extract", str(image_file), "--axis", "y", "-o", str(net_path), "--vtk", str(vtp),
-            "--statoil", str(prefix), "--json"]
+    argv = [
+        "extract",
+        str(image_file),
+        "--axis",
+        "y",
+        "-o",
+        str(net_path),
+        "--vtk",
+        str(vtp),
+        "--statoil",
+        str(prefix),
+        "--json",
+    ]
     assert main(argv) == 0
     s = _json(capsys)
-    for k in ("n_pores", "n_throats", "porosity", "voxel_size_m", "seconds", "mean_coordination",
-              "removed_fraction", "network_file", "vtk_file"):
+    for k in (
+        "n_pores",
+        "n_throats",
+        "porosity",
+        "voxel_size_m",
+        "seconds",
+        "mean_coordination",
+        "removed_fraction",
+        "network_file",
+        "vtk_file",
+    ):
         assert k in s, k
     img = lattice_image()
     assert s["voxel_size_m"] == VS and s["porosity"] == pytest.approx(LATTICE.porosity, rel=1e-15, abs=0)
@@ -76,8 +96,9 @@ def test_extract_json_and_outputs(image_file, tmp_path, capsys):
     # The same pipeline through the library gives the same network, and the file holds it.
     ext = extract_network(percolating_cluster(VoxelImage(img, VS), "y").image)
     net = load_network(net_path)
-    assert (s["n_pores"], s["n_throats"]) == (net.n_pores, net.n_throats) == (ext.network.n_pores,
-                                                                                ext.network.n_throats)
+    assert (
+        (s["n_pores"], s["n_throats"]) == (net.n_pores, net.n_throats) == (ext.network.n_pores, ext.network.n_throats)
+    )
     np.testing.assert_array_equal(net.pore_coords, ext.network.pore_coords)
     assert s["mean_coordination"] == pytest.approx(2 * net.n_throats / net.n_pores, rel=1e-15, abs=0)
     _check_vtp(vtp, net)
@@ -227,6 +248,10 @@ def test_extraction_options_reach_extract_network(capsys):
     s = _json(capsys)
     assert (s["n_pores"], s["n_throats"]) == (ref.n_pores, ref.n_throats)
     assert (s["min_radius_voxels"], s["extent_radii"], s["merge_ratio"]) == (1.5, 8.0, 0.5)
+    assert s["min_radius_rule"] == "voxels"
+    assert main(["extract", "--min-radius", "auto", "--json"]) == 0
+    a = _json(capsys)
+    assert a["min_radius_rule"] == "auto" and a["n_pores"] == default.n_pores  # the sample's own floor is 2 voxels
     assert main(["permeability", *argv]) == 0
     k = _json(capsys)
     assert k["n_pores"] == ref.n_pores
@@ -345,8 +370,9 @@ def test_bad_output_paths(image_file, tmp_path, capsys):
 def test_wrong_raw_size(tmp_path, capsys):
     p = tmp_path / "img.raw"
     lattice_image().tofile(p)
-    _fails(capsys, ["extract", str(p), "--shape", "10", "10", "10", "--dtype", "uint8", "--voxel-size", "1e-5"],
-           "img.raw")
+    _fails(
+        capsys, ["extract", str(p), "--shape", "10", "10", "10", "--dtype", "uint8", "--voxel-size", "1e-5"], "img.raw"
+    )
 
 
 def test_non_binary_without_threshold(tmp_path, capsys):

@@ -108,8 +108,12 @@ def test_maximal_balls_keep_the_centre_of_a_digital_ball():
 
 
 @SETTINGS
-@given(images(max_side=6, p_min=0.6, p_max=0.95), st.sampled_from([1.0, 1.5, 2.0, 3.0]), st.sampled_from([0.0, 0.9]),
-       st.sampled_from([0.0, 0.5, 0.8]))
+@given(
+    images(max_side=6, p_min=0.6, p_max=0.95),
+    st.sampled_from([1.0, 1.5, 2.0, 3.0]),
+    st.sampled_from([0.0, 0.9]),
+    st.sampled_from([0.0, 0.5, 0.8]),
+)
 def test_families_equal_twin(img, extent, ratio, core):
     d = _edt(img)
     tab = np.sqrt(np.arange(d.max() + 1, dtype=float))

@@ -42,7 +42,10 @@ EXTRACT_OPTIONS = tuple(EXTRACT_DEFAULTS)
 def add_network_args(p: argparse.ArgumentParser) -> None:
     """Add ``IMAGE_OR_NET``, ``--axis``, ``--keep-isolated``, the extraction and the image options to ``p``."""
     p.add_argument(
-        "source", nargs="?", default=None, metavar="IMAGE_OR_NET",
+        "source",
+        nargs="?",
+        default=None,
+        metavar="IMAGE_OR_NET",
         help="a network file (NET.npz from 'porefsi extract -o') or a segmented image "
         "(.npy .npz .raw+.mhd .raw .tif); default: the built-in 120^3 Berea sample",
     )
@@ -79,22 +82,30 @@ def _min_radius(text: str) -> str | float:
 
 def _add_extraction_args(p: argparse.ArgumentParser) -> None:
     d = EXTRACT_DEFAULTS
-    g = p.add_argument_group(
-        "extraction options (images only; see porefsi.network.extract.extract_network)")
+    g = p.add_argument_group("extraction options (images only; see porefsi.network.extract.extract_network)")
     g.add_argument(
-        "--min-radius", type=_min_radius, default=None, metavar="auto|VOXELS",
+        "--min-radius",
+        type=_min_radius,
+        default=None,
+        metavar="auto|VOXELS",
         help="noise floor: a pore must hold a maximal ball at least this many voxels in radius; 'auto' sets it "
         "from the image (0.93 hydraulic radii from the wall, at least 2 voxels: the same pores at any voxel size); "
         f"a number (>= 1) fixes it in voxels, lower to find pores only a few voxels wide; default {d['min_radius']}",
     )
     g.add_argument(
-        "--extent", type=_at_least_one, default=None, metavar="RADII",
+        "--extent",
+        type=_at_least_one,
+        default=None,
+        metavar="RADII",
         help="family reach in pore radii: a ball of about a pore's size farther than this from its centre "
         "starts a new pore; lower it (>= 1) to split long channels into chains of pores; "
         f"default {d['extent']:g}",
     )
     g.add_argument(
-        "--merge-ratio", type=_fraction, default=None, metavar="R",
+        "--merge-ratio",
+        type=_fraction,
+        default=None,
+        metavar="R",
         help="balls smaller than R times a pore's radius join that pore, and pores whose throat is at least "
         f"R times the smaller pore radius are merged; in (0, 1]; default {d['merge_ratio']:g}",
     )
@@ -106,14 +117,20 @@ def _extraction_kwargs(args: argparse.Namespace) -> dict:
 
 
 def _add_axis_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--axis", choices=AXES, default="x",
-                   help="flow axis (x, y, z = array axes 0, 1, 2); default x")
-    p.add_argument("--keep-isolated", action="store_true",
-                   help="images: extract every pore cluster instead of only the one percolating along --axis")
-    p.add_argument("--conductance", choices=CONDUCTANCE_MODELS, default=None,
-                   help="conduit model: shape_factor (Valvatne-Blunt sections measured from the image; the "
-                   "default for extracted networks) or paper (circular cylinders of the inscribed radius, "
-                   "the seed paper's model and radius convention); a network file keeps its own unless given")
+    p.add_argument("--axis", choices=AXES, default="x", help="flow axis (x, y, z = array axes 0, 1, 2); default x")
+    p.add_argument(
+        "--keep-isolated",
+        action="store_true",
+        help="images: extract every pore cluster instead of only the one percolating along --axis",
+    )
+    p.add_argument(
+        "--conductance",
+        choices=CONDUCTANCE_MODELS,
+        default=None,
+        help="conduit model: shape_factor (Valvatne-Blunt sections measured from the image; the "
+        "default for extracted networks) or paper (circular cylinders of the inscribed radius, "
+        "the seed paper's model and radius convention); a network file keeps its own unless given",
+    )
 
 
 def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
@@ -124,11 +141,14 @@ def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
     axis = getattr(args, "axis", "x") or "x"
     t0 = time.perf_counter()
     if source is not None and is_network_file(source):
-        image_opts = [f"--{k.replace('_', '-')}" for k in ("voxel_size", "threshold", "pore_value", "shape",
-                                                               "dtype", "key", *EXTRACT_OPTIONS)
-                      if getattr(args, k, None) is not None]
-        image_opts += [f"--{k.replace('_', '-')}" for k in ("invert", "pore_above", "keep_isolated")
-                       if getattr(args, k, False)]
+        image_opts = [
+            f"--{k.replace('_', '-')}"
+            for k in ("voxel_size", "threshold", "pore_value", "shape", "dtype", "key", *EXTRACT_OPTIONS)
+            if getattr(args, k, None) is not None
+        ]
+        image_opts += [
+            f"--{k.replace('_', '-')}" for k in ("invert", "pore_above", "keep_isolated") if getattr(args, k, False)
+        ]
         if image_opts:
             raise InputError(
                 f"{' '.join(image_opts)} apply to images, but {source} is a network file (it stores its "
@@ -137,9 +157,14 @@ def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
         net = load_network(source)
         if getattr(args, "conductance", None):
             net = net.with_conductance(args.conductance)
-        return net, {"source": str(source), "source_kind": "network", "conductance": net.conduit_model,
-                     "voxel_size_m": net.voxel_size,
-                     "shape": list(net.shape), "seconds_read": time.perf_counter() - t0}
+        return net, {
+            "source": str(source),
+            "source_kind": "network",
+            "conductance": net.conduit_model,
+            "voxel_size_m": net.voxel_size,
+            "shape": list(net.shape),
+            "seconds_read": time.perf_counter() - t0,
+        }
     details = _extract_from_image(args, source, axis, keep_isolated=getattr(args, "keep_isolated", False))
     return details.pop("_network"), details
 
@@ -310,17 +335,35 @@ def register(subparsers) -> None:
         description="Read a segmented image (1 = pore), keep the pore cluster that percolates along "
         "--axis, extract its maximal-ball network (spheres joined by cylinders) and write it.",
     )
-    p.add_argument("image", nargs="?", default=None, metavar="IMAGE",
-                   help="segmented image (.npy .npz .raw+.mhd .raw .tif); default: the built-in Berea sample")
+    p.add_argument(
+        "image",
+        nargs="?",
+        default=None,
+        metavar="IMAGE",
+        help="segmented image (.npy .npz .raw+.mhd .raw .tif); default: the built-in Berea sample",
+    )
     _add_axis_args(p)
     _add_extraction_args(p)
-    p.add_argument("-o", "--output", default=None, metavar="NET.npz",
-                   help="write the network (OpenPNM-keyed arrays + porefsi extras, readable by numpy.load)")
-    p.add_argument("--vtk", default=None, metavar="NET.vtp",
-                   help="write a ParaView file: pores as points, throats as lines, with radii")
-    p.add_argument("--statoil", default=None, metavar="PREFIX",
-                   help="write PREFIX_node1.dat, _node2.dat, _link1.dat, _link2.dat for pnflow "
-                   "(flow along --axis becomes pnflow's x)")
+    p.add_argument(
+        "-o",
+        "--output",
+        default=None,
+        metavar="NET.npz",
+        help="write the network (OpenPNM-keyed arrays + porefsi extras, readable by numpy.load)",
+    )
+    p.add_argument(
+        "--vtk",
+        default=None,
+        metavar="NET.vtp",
+        help="write a ParaView file: pores as points, throats as lines, with radii",
+    )
+    p.add_argument(
+        "--statoil",
+        default=None,
+        metavar="PREFIX",
+        help="write PREFIX_node1.dat, _node2.dat, _link1.dat, _link2.dat for pnflow "
+        "(flow along --axis becomes pnflow's x)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     add_image_args(p)
     p.set_defaults(func=run_extract)

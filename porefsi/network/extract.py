@@ -43,8 +43,15 @@ from porefsi.network.floor import hydraulic_radius, largest_ball_cap, noise_floo
 from porefsi.network.network import CONDUCTANCE_MODELS, Network
 
 __all__ = [
-    "Extraction", "ExtractionInfo", "extract_network", "memory_needed", "check_memory", "digital_radius", "MIN_SEGMENT",
-    "hydraulic_radius", "noise_floor",
+    "Extraction",
+    "ExtractionInfo",
+    "extract_network",
+    "memory_needed",
+    "check_memory",
+    "digital_radius",
+    "MIN_SEGMENT",
+    "hydraulic_radius",
+    "noise_floor",
 ]
 
 #: Largest uint16 squared distance kept (module constant so a test can force the int32 path).
@@ -217,7 +224,11 @@ def _check(image, extent, merge_ratio):
 
 
 def extract_network(
-    image: VoxelImage, *, min_radius: float | str = "auto", extent: float = 2.0, merge_ratio: float = 0.9,
+    image: VoxelImage,
+    *,
+    min_radius: float | str = "auto",
+    extent: float = 2.0,
+    merge_ratio: float = 0.9,
     conductance: str | None = None,
 ) -> Extraction:
     """Extract a maximal-ball pore network from a segmented image.
@@ -340,10 +351,19 @@ def _extract(holder: list, *, min_radius, extent, merge_ratio, conductance) -> E
     labels.setflags(write=False)
     laps("assemble")
     info = ExtractionInfo(
-        seconds=laps.total(), n_candidate_balls=counts["candidates"], n_maximal_balls=counts["balls"],
-        n_scanned_balls=counts["scanned"], n_pores=top.n_pores, n_throats=int(top.conns.shape[0]), n_pore_voxels=n_pore,
-        n_labelled_voxels=int(top.count.sum()), n_flooded_voxels=counts["flooded"], min_radius=min_radius,
-        min_radius_rule=rule, extent=extent, merge_ratio=merge_ratio,
+        seconds=laps.total(),
+        n_candidate_balls=counts["candidates"],
+        n_maximal_balls=counts["balls"],
+        n_scanned_balls=counts["scanned"],
+        n_pores=top.n_pores,
+        n_throats=int(top.conns.shape[0]),
+        n_pore_voxels=n_pore,
+        n_labelled_voxels=int(top.count.sum()),
+        n_flooded_voxels=counts["flooded"],
+        min_radius=min_radius,
+        min_radius_rule=rule,
+        extent=extent,
+        merge_ratio=merge_ratio,
     )
     sections = {
         "area": geo.sec["area"] * vs**2,
@@ -485,5 +505,3 @@ def _network(shape, vs: float, origin, top: _Topology, geo: _Conduits, conductan
         pore_face_shape_factor=geo.sec["face"]["G"],
         pore_face_duct_fraction=geo.sec["face"]["fraction"],
     )
-
-
