@@ -120,6 +120,8 @@ def main(argv=None):
                       f"{'' if rec['complete'] else '(STOPPED) '}events {c['n_events']} solves {c['n_solves']}"
                       + (f" certified {c['n_certified_fills']} local {c['n_local_solves']} global "
                          f"{c['n_global_solves']}" if "n_certified_fills" in c else "")
+                      + (f" predicted {c['n_predicted_fills']} batches {c['n_predict_batches']} rollbacks "
+                         f"{c['n_predict_rollbacks']}" if c.get("n_predict_batches") else "")
                       + f"  bt {rec['breakthrough_time']:.4g} s  load {rec['load_before']}", flush=True)
             if "exact" in recs and "adaptive" in recs:
                 d = compare(recs["exact"], recs["adaptive"])

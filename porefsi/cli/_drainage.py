@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from porefsi.cli._common import emit, positive_float
+from porefsi.cli._common import _ArgumentError, emit, positive_float
 from porefsi.errors import InputError
 
 __all__ = ["register", "run", "write_pc_s", "CHECKPOINT"]
@@ -38,6 +38,7 @@ CHECKPOINT = "drainage_checkpoint.npz"
 def register(subparsers) -> None:
     """Add the ``drainage`` subcommand."""
     from porefsi.cli._extract import add_network_args
+    from porefsi.flow._drainage_options import DEFAULT_BACKOFF, DEFAULT_FLUX_TOLERANCE, DEFAULT_TIE_TOLERANCE
     from porefsi.flow.drainage import DEFAULT_SCHEME, PAPER_RATE, PAPER_T_END, SCHEMES
 
     p = subparsers.add_parser(
@@ -59,6 +60,20 @@ def register(subparsers) -> None:
                    help="exact: a pressure solve after every event (the reference); adaptive: quasi-static fills "
                    "in certified batches without solves, local pressure updates elsewhere (docs/drainage.md; "
                    f"default {DEFAULT_SCHEME})")
+    p.add_argument("--tie-tolerance", type=_nonnegative_float, default=None, metavar="TAU",
+                   help="adaptive only: relative band by which a quasi-static fill's pressure bound may exceed the "
+                   "next threshold and still be filled without a solve (0 = the rigorous certificate; default "
+                   f"{DEFAULT_TIE_TOLERANCE:g}, applied up to Ca = 1e-6)")
+    p.add_argument("--predict-fills", type=_nonnegative_int, default=None, metavar="M",
+                   help="adaptive only: with active menisci, most fills made with the last solve's flux split "
+                   "before one solve checks them (rolled back if the check fails); 0 = off, the default "
+                   "(measured to save nothing, docs/drainage.md)")
+    p.add_argument("--flux-tolerance", type=_nonnegative_float, default=None, metavar="EPS",
+                   help=f"adaptive only: the --predict-fills check's tolerance on the flux split, sum |dq| / rate "
+                   f"(default {DEFAULT_FLUX_TOLERANCE:g}, at most 2)")
+    p.add_argument("--backoff", type=_nonnegative_int, default=None, metavar="STEPS",
+                   help=f"adaptive only: most steps without a quasi-static batch attempt after attempts that "
+                   f"certified nothing (0 = attempt at every step; default {DEFAULT_BACKOFF})")
     p.add_argument("--snapshots", type=int, default=5, metavar="K",
                    help="number of evenly spaced per-pore snapshots written to DIR (default 5)")
     p.add_argument("-o", "--output", default=None, metavar="DIR",
@@ -77,6 +92,46 @@ def register(subparsers) -> None:
     p.add_argument("--force", action="store_true", help=f"allow more than {MAX_SNAPSHOTS} --snapshots")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=run)
+
+
+#: Command-line flags of the adaptive scheme's knobs (the DrainageOptions field of each).
+_ADAPTIVE_FLAGS = {"tie_tolerance": "--tie-tolerance", "predict_fills": "--predict-fills",
+                   "flux_tolerance": "--flux-tolerance", "backoff": "--backoff"}
+
+
+def _nonnegative_float(text: str) -> float:
+    """Argparse type: a finite float >= 0."""
+    try:
+        x = float(text)
+    except ValueError:
+        raise _ArgumentError(f"expected a number, got {text!r}") from None
+    if not np.isfinite(x) or x < 0:
+        raise _ArgumentError(f"expected a finite number >= 0, got {text!r}")
+    return x
+
+
+def _nonnegative_int(text: str) -> int:
+    """Argparse type: an integer >= 0."""
+    try:
+        k = int(text)
+    except ValueError:
+        raise _ArgumentError(f"expected an integer, got {text!r}") from None
+    if k < 0:
+        raise _ArgumentError(f"expected an integer >= 0, got {text!r}")
+    return k
+
+
+def _adaptive_knobs(args: argparse.Namespace) -> dict:
+    """The adaptive knobs given on the command line (an error naming the flag if the scheme is exact)."""
+    given = {k: getattr(args, k) for k in _ADAPTIVE_FLAGS if getattr(args, k, None) is not None}
+    if given and args.scheme != "adaptive":
+        flags = ", ".join(_ADAPTIVE_FLAGS[k] for k in given)
+        raise InputError(f"{flags} apply to --scheme adaptive only (the scheme is {args.scheme}); "
+                         "add --scheme adaptive or drop them")
+    if given.get("flux_tolerance", 0.0) > 2.0:
+        raise InputError(f"--flux-tolerance must be at most 2 (a sum of flux differences over the rate), "
+                         f"got {given['flux_tolerance']:g}")
+    return given
 
 
 def run(args: argparse.Namespace) -> int:
@@ -112,7 +167,8 @@ def run(args: argparse.Namespace) -> int:
     times = np.linspace(0, args.t_end, args.snapshots + 1)[1:] if args.snapshots else None
     tty = sys.stderr.isatty()
     every = args.progress_every or (REPORT_EVERY_TTY if tty else REPORT_EVERY)
-    options = DrainageOptions(rate=args.rate, t_end=args.t_end, scheme=args.scheme)  # argparse checked each
+    options = DrainageOptions(rate=args.rate, t_end=args.t_end, scheme=args.scheme,  # argparse checked each
+                              **_adaptive_knobs(args))
     report = dict(report=_progress(args.t_end, saved=False), report_every=every)
     if out is None:
         res = simulate_drainage(net, fluids, options, axis=args.axis, times=times, run=RunControl(**report))

@@ -36,13 +36,17 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from porefsi.flow import _drainage_predictor as pred
 from porefsi.flow import _kernels as kern
 from porefsi.flow._drainage_engine import Engine
 from porefsi.flow._drainage_graph import DrainageGraph
 from porefsi.flow._drainage_options import (
+    DEFAULT_BACKOFF,
+    DEFAULT_FLUX_TOLERANCE,
     DEFAULT_HOPS,
     DEFAULT_LOCAL_MENISCI,
     DEFAULT_LOCAL_SOLVES,
+    DEFAULT_PREDICT_FILLS,
     DEFAULT_TIE_TOLERANCE,
 )
 
@@ -50,10 +54,6 @@ __all__ = ["AdaptiveEngine", "DEFAULT_LOCAL_SOLVES", "DEFAULT_HOPS", "DEFAULT_LO
 
 #: Relative safety of the certificate against round-off in the bound (as the exact scheme's skip).
 _SAFETY = 1e-9
-
-#: Most steps without a batch attempt after attempts that certified nothing (cost only: an
-#: uncertified step is the exact scheme's event, with its own per-jump skip test).
-_MAX_BACKOFF = 32
 
 
 _RES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -91,12 +91,21 @@ class AdaptiveEngine(Engine):
         docs/drainage.md).
     batch : int
         Most fills predicted (and certified) per batch; cost only, never the outcome.
+    predict : (int, float)
+        ``(predict_fills, flux_tolerance)`` of the flux-split predictor-corrector
+        (:mod:`porefsi.flow._drainage_predictor`) where menisci are active: most fills per
+        predicted batch (0 or 1: off, the exact scheme's events) and the corrector's tolerance on
+        the flux split (L1, relative to the rate).
+    backoff : int
+        Most steps without a quasi-static batch attempt after attempts that certified nothing
+        (doubling from 1; 0: attempt at every step). Cost only with ``tie_tolerance = 0``.
     """
 
     def __init__(self, graph: DrainageGraph, rate: float | None, inlet_pressure: float | None,
                  solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None, *,
                  local: tuple = (DEFAULT_LOCAL_SOLVES, DEFAULT_HOPS, DEFAULT_LOCAL_MENISCI, DEFAULT_TIE_TOLERANCE),
-                 batch: int = 64):
+                 batch: int = 64, predict: tuple = (DEFAULT_PREDICT_FILLS, DEFAULT_FLUX_TOLERANCE),
+                 backoff: int = DEFAULT_BACKOFF):
         super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=skip_solves,
                          max_active_set_iter=max_active_set_iter)
         local_solves, hops, local_menisci, tie = local
@@ -120,7 +129,16 @@ class AdaptiveEngine(Engine):
         self.dw_dist = self.dw_pred = None  # the last wetting-path search (d_W), over a region that only shrinks
         self.n_dw_searches = 0
         self.backoff = 0  # after a batch that certified nothing, this many quiet steps skip the attempt
-        self.backoff_left = 0  # (doubling up to _MAX_BACKOFF; a certified batch resets it)
+        self.backoff_left = 0  # (doubling up to max_backoff; a certified batch resets it)
+        self.max_backoff = int(backoff)
+        self.predict_fills = int(predict[0])
+        self.flux_tol = float(predict[1])
+        self.predict_m = 2  # fills of the next predicted batch (doubles on success, halves on failure, >= 2)
+        self.predict_wait = self.predict_left = 0  # exact events without a prediction after rejections at 2
+        self.p_current = False  # P solves the current configuration (a corrector's solve, reused once)
+        self.n_predicted = 0  # fills made with a predicted flux split and accepted by the corrector
+        self.n_predict_batches = 0
+        self.n_rollbacks = 0
 
     # -- non-wetting distances ---------------------------------------------------------------
     def _sync_dn(self):
@@ -130,7 +148,13 @@ class AdaptiveEngine(Engine):
             self.dn = kern._n_distance(self.g.indptr, self.g.nbr, nres, self.full, in_res)
             self.dn_full = nf
 
+    def open_edge(self, e: int):
+        """As the exact engine's; a kept corrector solve no longer matches the configuration."""
+        self.p_current = False
+        super().open_edge(e)
+
     def _on_full(self, pores):
+        self.p_current = False
         synced = self.dn_full == int(np.count_nonzero(self.full))
         super()._on_full(pores)
         if synced:
@@ -151,6 +175,9 @@ class AdaptiveEngine(Engine):
         field, which enters as a Dirichlet condition. ``force_global`` (outputs) solves globally
         without making the result the reference of later local solves.
         """
+        if getattr(self, "p_current", False):  # the corrector's solve of this very configuration
+            self.p_current = False
+            return self.conductances()
         cond, men, fa = self.conductances()
         A, rhs, x = self.assemble(cond, men, fa)
         old = self.P
@@ -210,18 +237,75 @@ class AdaptiveEngine(Engine):
     # -- stepping ----------------------------------------------------------------------------
     def step(self, t_target: float):
         """Advance by one event, or by a certified batch of quasi-static fills (two events each)."""
-        if (self.flux_valid or self.rate is None or not np.isnan(self.t_breakthrough)
-                or self.has_open_path()):
+        if self.flux_valid or self.rate is None or not np.isnan(self.t_breakthrough):
+            return Engine.step(self, t_target)
+        if self.has_open_path():
+            if getattr(self, "predict_fills", 0) > 1:
+                return self._predicted(t_target)
             return Engine.step(self, t_target)
         if self.backoff_left > 0:  # recent batches certified nothing: do not pay for predicting one
             self.backoff_left -= 1
             return Engine.step(self, t_target)
         if self._batch(t_target) == 0:
-            self.backoff = min(2 * self.backoff + 1, _MAX_BACKOFF)
+            self.backoff = min(2 * self.backoff + 1, getattr(self, "max_backoff", DEFAULT_BACKOFF))
             self.backoff_left = self.backoff
             Engine.step(self, t_target)  # not certified: the exact jump; the next event solves
         else:
             self.backoff = 0
+
+    def _predicted(self, t_target):
+        """The exact event, then up to ``predict_m - 1`` fills with a predicted flux split, checked by one solve.
+
+        See :mod:`porefsi.flow._drainage_predictor`. A rejected batch is retried from the end of
+        the exact event with the size the corrector names, down to none (the next step then
+        resolves the exact event's state exactly).
+        """
+        before = self.full.copy()
+        Engine.step(self, t_target)
+        if self.flux_valid or not np.isnan(self.t_breakthrough):
+            return  # no fill (the target time), or breakthrough: the exact scheme's events from here
+        if self.predict_left > 0:  # recent batches were rejected down to none
+            self.predict_left -= 1
+            return
+        first = np.flatnonzero(self.full & ~before)
+        q0 = self.q.copy()
+        if not pred.redistribute(q0, first, self.rate) or pred.near_opening(self, first):
+            return
+        saved = pred.snapshot(self)
+        m = self.predict_m
+        while m > 1:
+            fills, q = self._predict_fills(m, q0.copy(), first, t_target)
+            self.n_predict_batches += 1
+            retry = pred.verdict(self, fills, q, self.flux_tol, saved["P"])
+            if retry == 0:
+                self.flux_valid = False  # the next event resolves, starting from the corrector's solve
+                self.n_predicted += len(fills) - 1
+                self.predict_m = min(2 * len(fills), self.predict_fills)
+                self.predict_wait = 0
+                return
+            pred.restore(self, saved)
+            self.n_rollbacks += 1
+            m = min(retry, len(fills) - 1)
+        self.predict_m = 2
+        self.predict_wait = min(2 * self.predict_wait + 1, 32)
+        self.predict_left = self.predict_wait
+
+    def _predict_fills(self, m, q, first, t_target):
+        """Fills with the predicted split after the exact one, up to ``m`` in all; return (pores per fill, q)."""
+        fills = [first]
+        while len(fills) < m:
+            self.q, self.flux_valid, self.p_valid = q, True, False
+            before = self.full.copy()
+            Engine.step(self, t_target)
+            if self.flux_valid:  # the target time, no fill
+                break
+            last = np.flatnonzero(self.full & ~before)
+            fills.append(last)
+            q = q.copy()
+            if (not np.isnan(self.t_breakthrough) or not pred.redistribute(q, last, self.rate)
+                    or pred.near_opening(self, last)):
+                break
+        return fills, q
 
     def _front(self):
         """Pinned menisci as a heap of (threshold, edge) (no meniscus is active when this is called)."""

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from porefsi.errors import InputError, PorefsiError
-from porefsi.flow._drainage_options import DrainageOptions
+from porefsi.flow._drainage_options import PREDICTOR_KNOBS, DrainageOptions
 from porefsi.flow._drainage_simulator import ROW_COLUMNS, DrainageSimulator
 from porefsi.flow.fluids import Fluids
 from porefsi.flow.state import FlowState
@@ -125,14 +125,18 @@ def simulator_from_state(prefix: str, arrays: dict, meta: dict):
     d = plain.get_fields(f"{prefix}.sim", arrays, meta)
     opts = {k[4:]: v for k, v in d.items() if k.startswith("opt_")}
     if f"{prefix}.options" in meta:
-        sim = DrainageSimulator(net, fluids, DrainageOptions(**plain.get_fields(f"{prefix}.options", arrays, meta)),
-                                axis=d["axis"], _keep=d["keep"])
+        fields = plain.get_fields(f"{prefix}.options", arrays, meta)
+        if fields.get("scheme") == "adaptive":  # written before the predictor: it ran without
+            fields = {**PREDICTOR_KNOBS, **fields}
+            opts = {**PREDICTOR_KNOBS, **opts}
+        sim = DrainageSimulator(net, fluids, DrainageOptions(**fields), axis=d["axis"], _keep=d["keep"])
         if sim._opts != opts:
             raise ValueError(f"stored engine options {opts} differ from the stored drainage options' {sim._opts}")
     else:  # written before the options object: the engine options and the boundary condition
         bc = {"rate": d["rate"]} if d["inlet_pressure"] is None else {"inlet_pressure": d["inlet_pressure"]}
         if opts.get("scheme") == "adaptive":
             opts.setdefault("tie_tolerance", 0.0)  # adaptive runs before the tolerance: the rigorous certificate
+            opts = {**PREDICTOR_KNOBS, **opts}
         sim = DrainageSimulator(net, fluids, axis=d["axis"], _keep=d["keep"], **bc, **opts)
     if _graph_digest(sim.graph) != meta[f"{prefix}.graph_sha1"]:
         raise ValueError("the drainage graph rebuilt from the checkpoint differs from the saved one")

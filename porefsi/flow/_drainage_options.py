@@ -19,7 +19,8 @@ from porefsi._schema import Limits, option, validate
 from porefsi.errors import ConfigError, InputError
 
 __all__ = ["DrainageOptions", "RunControl", "SCHEMES", "SOLVERS", "DEFAULT_LOCAL_SOLVES", "DEFAULT_HOPS",
-           "DEFAULT_LOCAL_MENISCI", "DEFAULT_TIE_TOLERANCE", "TIE_MAX_CA", "options_from"]
+           "DEFAULT_LOCAL_MENISCI", "DEFAULT_TIE_TOLERANCE", "DEFAULT_PREDICT_FILLS", "DEFAULT_FLUX_TOLERANCE",
+           "DEFAULT_BACKOFF", "PREDICTOR_KNOBS", "TIE_MAX_CA", "options_from"]
 
 #: Drainage schemes: ``'exact'`` (a pressure solve after every event, the reference) and
 #: ``'adaptive'`` (certified quasi-static batches without solves, dynamic events elsewhere).
@@ -31,6 +32,16 @@ DEFAULT_LOCAL_SOLVES = 0
 DEFAULT_HOPS = 3
 DEFAULT_LOCAL_MENISCI = 8
 DEFAULT_TIE_TOLERANCE = 1.0
+#: Flux-split predictor-corrector where menisci are active (:mod:`porefsi.flow._drainage_predictor`):
+#: most fills per predicted batch and the corrector's flux-split tolerance (L1 / rate). Off by
+#: default: measured (docs/drainage.md, "Several active menisci"), almost every batch is rejected
+#: because a meniscus opens right after the fill that starts it, so it costs more than it saves.
+DEFAULT_PREDICT_FILLS = 0
+DEFAULT_FLUX_TOLERANCE = 0.05
+#: Most steps without a quasi-static batch attempt after attempts that certified nothing (0: none skipped).
+DEFAULT_BACKOFF = 32
+#: Knobs added after the options object (2026-12-02): a checkpoint without them ran with them off.
+PREDICTOR_KNOBS = {"predict_fills": 0, "flux_tolerance": DEFAULT_FLUX_TOLERANCE, "backoff": DEFAULT_BACKOFF}
 #: Capillary number (on the inlet face) above which ``tie_tolerance`` is not applied: the rigorous
 #: certificate only. Measured (docs/stability.md, section f): at Ca = 1e-5 a tolerance of 1 put the
 #: breakthrough time of a 1200-pore lattice 4.7 % off; at 1e-6 and below every run stayed within 0.3 %.
@@ -43,7 +54,8 @@ TIE_MAX_CA = 1e-6
 #: lattice, 436: split 35 CPU s against low-rank 154 s). Below, ``"lowrank"`` (10k: 1.9 s against 3.3 s).
 ADAPTIVE_SPLIT_ABOVE = 20000
 _ADAPTIVE_KNOBS = {"local_solves": DEFAULT_LOCAL_SOLVES, "hops": DEFAULT_HOPS, "local_menisci": DEFAULT_LOCAL_MENISCI,
-                   "tie_tolerance": DEFAULT_TIE_TOLERANCE}
+                   "tie_tolerance": DEFAULT_TIE_TOLERANCE, "predict_fills": DEFAULT_PREDICT_FILLS,
+                   "flux_tolerance": DEFAULT_FLUX_TOLERANCE, "backoff": DEFAULT_BACKOFF}
 
 _POSITIVE = Limits(0.0, None, lo_open=True)
 
@@ -88,6 +100,18 @@ class DrainageOptions:
                                   "measured in docs/drainage.md; 1 = the default: Sw and breakthrough within 0.3 % of "
                                   "the exact scheme on the lattices and rates measured); applied at capillary numbers "
                                   "up to 1e-6 only (above: the rigorous certificate)", limits=Limits(0.0))
+    predict_fills: int = option(DEFAULT_PREDICT_FILLS, "adaptive only: where menisci are active, most fills made "
+                                "with the last solve's flux split (the filled pore's inflow handed to the other "
+                                "menisci in proportion) before one solve checks them and rolls back if the check "
+                                "fails (0 or 1 = off, the default: the exact scheme's events; an approximation, "
+                                "measured in docs/drainage.md to save nothing: almost every batch is rejected)",
+                                limits=Limits(0))
+    flux_tolerance: float = option(DEFAULT_FLUX_TOLERANCE, "adaptive only: the predictor's check, largest "
+                                   "sum over pores of |predicted - solved inflow| relative to the rate",
+                                   limits=Limits(0.0, 2.0))
+    backoff: int = option(DEFAULT_BACKOFF, "adaptive only: most steps without a quasi-static batch attempt after "
+                          "attempts that certified nothing (doubling from 1; 0 = attempt at every step)",
+                          limits=Limits(0))
 
     def __post_init__(self):
         if isinstance(self.skip_solves, bool):

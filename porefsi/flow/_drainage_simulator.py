@@ -42,7 +42,9 @@ def _make_engine(graph, rate, inlet_pressure, opts: dict) -> Engine:
         from porefsi.flow._drainage_adaptive import AdaptiveEngine
 
         local = (o.pop("local_solves"), o.pop("hops"), o.pop("local_menisci"), o.pop("tie_tolerance", 0.0))
-        return AdaptiveEngine(graph, rate, inlet_pressure, **o, local=local)
+        predict = (o.pop("predict_fills", 0), o.pop("flux_tolerance", 0.0))
+        backoff = o.pop("backoff", 32)
+        return AdaptiveEngine(graph, rate, inlet_pressure, **o, local=local, predict=predict, backoff=backoff)
     return Engine(graph, rate, inlet_pressure, **o)
 
 
@@ -131,7 +133,8 @@ class DrainageSimulator:
         """Event and solve counts: events, fills, jumps, solves, skipped solves, AMG setups, ...
 
         The adaptive scheme adds ``n_certified_fills`` (quasi-static fills certified without a
-        solve), ``n_local_solves`` and ``n_global_solves``.
+        solve), ``n_local_solves``, ``n_global_solves``, and for the flux-split predictor
+        ``n_predicted_fills`` (accepted), ``n_predict_batches`` and ``n_predict_rollbacks``.
         """
         e = self._engine
         out = dict(n_events=e.n_events, n_fills=e.n_fills, n_jumps=e.n_jumps, n_solves=e.solver.n_solves,
@@ -139,7 +142,10 @@ class DrainageSimulator:
                    max_active_set_iterations=e.max_iter_seen, n_solver_setups=e.solver.n_setups,
                    cg_iterations=e.solver.iterations)
         if hasattr(e, "n_certified"):
-            out.update(n_certified_fills=e.n_certified, n_local_solves=e.n_local, n_global_solves=e.n_global)
+            out.update(n_certified_fills=e.n_certified, n_local_solves=e.n_local, n_global_solves=e.n_global,
+                       n_predicted_fills=getattr(e, "n_predicted", 0),
+                       n_predict_batches=getattr(e, "n_predict_batches", 0),
+                       n_predict_rollbacks=getattr(e, "n_rollbacks", 0))
         return out
 
     @property

@@ -34,12 +34,25 @@ import numpy as np
 
 from porefsi.errors import InputError
 from porefsi.flow import _drainage_checkpoint as _ckpt
-from porefsi.flow._drainage_options import SCHEMES, DrainageOptions, RunControl, options_from
+from porefsi.flow._drainage_options import (
+    DEFAULT_BACKOFF,
+    DEFAULT_FLUX_TOLERANCE,
+    DEFAULT_PREDICT_FILLS,
+    SCHEMES,
+    DrainageOptions,
+    RunControl,
+    options_from,
+)
 from porefsi.flow._drainage_simulator import HISTORY_COLUMNS, OUTLET_PRESSURE, DrainageSimulator
 from porefsi.flow.fluids import PAPER_FLUIDS, Fluids
 from porefsi.flow.state import DrainageResult
 from porefsi.image.voxel_image import axis_index
 from porefsi.network.network import Network
+
+#: Options added after checkpoints with the options object existed: left out of a run's
+#: fingerprint at these (their defaults, the earlier behaviour), so those checkpoints still resume.
+_LATER_KNOBS = {"predict_fills": DEFAULT_PREDICT_FILLS, "flux_tolerance": DEFAULT_FLUX_TOLERANCE,
+                "backoff": DEFAULT_BACKOFF}
 
 __all__ = ["DrainageSimulator", "DrainageResult", "DrainageOptions", "RunControl", "simulate_drainage", "PAPER_RATE",
            "PAPER_T_END", "HISTORY_COLUMNS", "OUTLET_PRESSURE", "SCHEMES", "DEFAULT_SCHEME"]
@@ -109,7 +122,8 @@ def simulate_drainage(net: Network, fluids: Fluids = PAPER_FLUIDS, options: Drai
     if run.checkpoint is not None:
         settings = dict(times=tuple(ts.tolist()), axis=axis_index(axis),
                         stop_at_breakthrough=bool(stop_at_breakthrough),
-                        options=tuple(sorted(dataclasses.asdict(options).items())))
+                        options=tuple(sorted((k, v) for k, v in dataclasses.asdict(options).items()
+                                             if not (k in _LATER_KNOBS and v == _LATER_KNOBS[k]))))
         key = _ckpt.fingerprint(net, fluids, settings)
     driver = _Driver(run, key)
     if run.resume:
