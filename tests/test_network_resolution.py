@@ -33,9 +33,9 @@ def _chambers_and_duct(w, lateral=0):
     n = 13
     pore = np.zeros((2 * n + 10, n + 4, n + 4), np.uint8)
     pore[:n, 2:-2, 2:-2] = 1
-    pore[n + 10:, 2:-2, 2:-2] = 1
+    pore[n + 10 :, 2:-2, 2:-2] = 1
     c = 2 + (n - w) // 2 + lateral
-    pore[n:n + 10, c:c + w, c:c + w] = 1
+    pore[n : n + 10, c : c + w, c : c + w] = 1
     return pore
 
 
