@@ -238,14 +238,11 @@ def extract_network(
     image : VoxelImage
         Segmented image, 1 = pore.
     min_radius : 'auto' or float, default 'auto'
-        Noise floor, voxels: only balls with ``sqrt(dt2) >= min_radius`` are candidates (the
-        distance to the nearest solid voxel centre; 1 keeps every pore voxel). A pore must hold
-        a ball of this radius: smaller maxima of the distance map are resolution noise (a
-        one-voxel error on a radius-1 ball is 100 %). Their voxels join neighbouring pores.
-        ``'auto'`` (:func:`porefsi.network.floor.noise_floor`): a fixed fraction of the image's
-        hydraulic radius (pore volume / pore-solid surface) and at least 2 voxels, so the same
-        rock imaged at a finer voxel gives the same pores; 2 voxels on the Berea images at
-        5.345 µm. A number fixes the floor in voxels (2 was the default before).
+        Noise floor, voxels: only balls with ``sqrt(dt2) >= min_radius`` (distance to the nearest
+        solid voxel centre) are candidates; smaller maxima are resolution noise, their voxels
+        join neighbouring pores. ``'auto'`` (:func:`porefsi.network.floor.noise_floor`): a fixed
+        fraction of the image's hydraulic radius, at least 2 voxels, so the same rock imaged
+        finer gives the same pores. A number fixes the floor in voxels (2 was the default).
     extent : float, default 2.0
         Family reach, in master radii: a ball of about the master's size joins the master's pore
         only if its centre lies within ``extent`` master radii of the master's centre, else it
@@ -273,8 +270,7 @@ def extract_network(
     TypeError
         If ``image`` is not a VoxelImage.
     InputError
-        All-solid or all-pore image, an axis shorter than 3 voxels, bad parameters (``min_radius``
-        neither ``'auto'`` nor a number >= 1, ...), or more
+        All-solid or all-pore image, an axis shorter than 3 voxels, bad parameters, or more
         memory needed (:func:`memory_needed`) than is available (checked before allocating).
     NetworkError
         No ball reaches ``min_radius`` (no pore found), or no two pore regions touch (no throat).
