@@ -30,23 +30,12 @@ from porefsi.errors import ConvergenceError
 from porefsi.flow import _kernels as kern
 
 
-def _excess(e):
-    """Per edge under the current field: pinned excess, backflow excess (-inf where not such), far end."""
+def _forward(e, edges, fa):
+    """``P_u - P_x - Pc_b,x`` of ``edges`` (each with one non-wetting end ``u``) under the current field."""
     g = e.g
-    n = g.n
-    fx = e._node_full()
-    fa, fb = fx[g.a], fx[g.b]
-    u = np.minimum(np.where(fa, g.a, g.b), n)
-    x = np.minimum(np.where(fa, g.b, g.a), n)
-    xp = np.minimum(x, n - 1)
-    one = (fa ^ fb) & g.inner & ~e.trapped[xp]
-    active = one & e.inv & ~e.closed
-    d = e.P[u] - e.P[x]
-    thr = np.where(e.inv, g.pcb[xp], g.thr)
-    with np.errstate(invalid="ignore"):
-        ex_open = np.where(one & ~active, d - thr, -np.inf)
-        ex_close = np.where(active, -(d - g.pcb[xp]), -np.inf)
-    return ex_open, ex_close, x
+    u = np.where(fa[edges], g.a[edges], g.b[edges])
+    x = np.where(fa[edges], g.b[edges], g.a[edges])
+    return e.P[u] - e.P[x] - g.pcb[x]
 
 
 def resolve(e) -> None:
@@ -59,9 +48,8 @@ def resolve(e) -> None:
     hist = []
     for it in range(e.max_iter):
         cond, men, fa = e.solve()
-        ex_open, ex_close, _ = _excess(e)
         if block is not None:  # the last block's check: a member pushed forward again was not the sequence's
-            bad = block[ex_open[block] > e._ptol]
+            bad = block[_forward(e, block, fa) > e._ptol]
             block = None
             if bad.size:
                 e.closed[bad] = False
@@ -81,7 +69,8 @@ def resolve(e) -> None:
         if kind == 1:
             e.open_edge(k)
             continue
-        back = np.flatnonzero(ex_close > e._ptol)
+        em = np.flatnonzero(men)
+        back = em[_forward(e, em, fa) < -e._ptol]
         edges = back if not single and back.size > 1 else np.array([k])
         e.closed[edges] = True
         blocked[edges] = True
