@@ -57,9 +57,39 @@ def test_cli_drainage_writes_outputs_and_json(net_file, tmp_path, capsys):
     (["--theta", "95"], "contact angle"),
     (["--sigma", "0"], "positive"),
     (["--axis", "z", "--mu-n=-1"], "positive"),
+    (["--scheme", "adaptive", "--tie-tolerance=-1"], ">= 0"),
+    (["--scheme", "adaptive", "--tie-tolerance", "nan"], ">= 0"),
+    (["--scheme", "adaptive", "--predict-fills", "2.5"], "integer"),
+    (["--scheme", "adaptive", "--flux-tolerance", "3"], "at most 2"),
+    (["--tie-tolerance", "0.5"], "--scheme adaptive only"),
+    (["--block-pivots", "off"], "--scheme adaptive only"),
 ])
 def test_cli_drainage_bad_input_is_a_one_line_error(net_file, capsys, argv, msg):
     _, path = net_file
     code = main(["drainage", str(path), *argv])
     err = capsys.readouterr().err
     assert code == 2 and msg in err
+
+
+def test_cli_drainage_adaptive_knobs_reach_the_options(net_file, capsys, monkeypatch):
+    """--tie-tolerance, --predict-fills, --flux-tolerance, --block-pivots and --backoff set the adaptive
+    scheme's options; left out, the options keep their defaults."""
+    import porefsi.flow.drainage as drainage
+
+    seen = []
+    real = drainage.simulate_drainage
+
+    def spy(net, fluids, options, **kw):
+        seen.append(options)
+        return real(net, fluids, options, **kw)
+
+    monkeypatch.setattr(drainage, "simulate_drainage", spy)
+    _, path = net_file
+    base = ["drainage", str(path), "--scheme", "adaptive", "--t-end", "2", "--snapshots", "0", "--json"]
+    assert main([*base, "--tie-tolerance", "0", "--predict-fills", "4", "--flux-tolerance", "0.1",
+                 "--block-pivots", "off", "--backoff", "0"]) == 0
+    assert main(base) == 0
+    capsys.readouterr()
+    o, d = seen
+    assert (o.tie_tolerance, o.predict_fills, o.flux_tolerance, o.block_pivots, o.backoff) == (0.0, 4, 0.1, "off", 0)
+    assert d == drainage.DrainageOptions(rate=d.rate, t_end=2.0, scheme="adaptive")

@@ -71,6 +71,9 @@ def register(subparsers) -> None:
     p.add_argument("--flux-tolerance", type=_nonnegative_float, default=None, metavar="EPS",
                    help=f"adaptive only: the --predict-fills check's tolerance on the flux split, sum |dq| / rate "
                    f"(default {DEFAULT_FLUX_TOLERANCE:g}, at most 2)")
+    p.add_argument("--block-pivots", choices=("on", "off"), default=None,
+                   help="adaptive only: close every pushed-back meniscus of an event at once, checked by the next "
+                   "solve (on, the default) or one per solve as the exact scheme (off)")
     p.add_argument("--backoff", type=_nonnegative_int, default=None, metavar="STEPS",
                    help=f"adaptive only: most steps without a quasi-static batch attempt after attempts that "
                    f"certified nothing (0 = attempt at every step; default {DEFAULT_BACKOFF})")
@@ -96,7 +99,7 @@ def register(subparsers) -> None:
 
 #: Command-line flags of the adaptive scheme's knobs (the DrainageOptions field of each).
 _ADAPTIVE_FLAGS = {"tie_tolerance": "--tie-tolerance", "predict_fills": "--predict-fills",
-                   "flux_tolerance": "--flux-tolerance", "backoff": "--backoff"}
+                   "flux_tolerance": "--flux-tolerance", "backoff": "--backoff", "block_pivots": "--block-pivots"}
 
 
 def _nonnegative_float(text: str) -> float:

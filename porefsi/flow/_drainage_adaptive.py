@@ -36,6 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from porefsi.flow import _drainage_pivots as pivots
 from porefsi.flow import _drainage_predictor as pred
 from porefsi.flow import _kernels as kern
 from porefsi.flow._drainage_engine import Engine
@@ -99,13 +100,16 @@ class AdaptiveEngine(Engine):
     backoff : int
         Most steps without a quasi-static batch attempt after attempts that certified nothing
         (doubling from 1; 0: attempt at every step). Cost only with ``tie_tolerance = 0``.
+    block_pivots : bool
+        Settle the menisci of an event in checked blocks (:mod:`porefsi.flow._drainage_pivots`)
+        instead of one per solve.
     """
 
     def __init__(self, graph: DrainageGraph, rate: float | None, inlet_pressure: float | None,
                  solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None, *,
                  local: tuple = (DEFAULT_LOCAL_SOLVES, DEFAULT_HOPS, DEFAULT_LOCAL_MENISCI, DEFAULT_TIE_TOLERANCE),
                  batch: int = 64, predict: tuple = (DEFAULT_PREDICT_FILLS, DEFAULT_FLUX_TOLERANCE),
-                 backoff: int = DEFAULT_BACKOFF):
+                 backoff: int = DEFAULT_BACKOFF, block_pivots: bool = False):
         super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=skip_solves,
                          max_active_set_iter=max_active_set_iter)
         local_solves, hops, local_menisci, tie = local
@@ -139,6 +143,9 @@ class AdaptiveEngine(Engine):
         self.n_predicted = 0  # fills made with a predicted flux split and accepted by the corrector
         self.n_predict_batches = 0
         self.n_rollbacks = 0
+        self.block_pivots = bool(block_pivots)
+        self.n_block_pivots = 0  # block pivots made, and members undone by their check
+        self.n_block_undos = 0
 
     # -- non-wetting distances ---------------------------------------------------------------
     def _sync_dn(self):
@@ -147,6 +154,13 @@ class AdaptiveEngine(Engine):
             nres, in_res = _resistances(self.g)
             self.dn = kern._n_distance(self.g.indptr, self.g.nbr, nres, self.full, in_res)
             self.dn_full = nf
+
+    def _resolve(self):
+        """The exact engine's resolution, with block pivots when switched on (constant rate, fluid moving)."""
+        if getattr(self, "block_pivots", False) and self.rate is not None and self.has_open_path():
+            pivots.resolve(self)
+            return False
+        return Engine._resolve(self)
 
     def open_edge(self, e: int):
         """As the exact engine's; a kept corrector solve no longer matches the configuration."""

@@ -14,20 +14,24 @@ stops early at a fill where the last solve's field says a new meniscus of the fi
 within 10 % of its entry threshold (``P_w,k + Pc_b,k - P_w,y >= 0.9 T``): that is a likely
 opening, and the corrector's solve comes right after it, as in the exact scheme.
 
-Corrector (a posteriori, one solve). The pressure field of the state the batch reached, with
-every predicted meniscus pinned, is solved and accepted when
+Corrector (a posteriori, one solve, :func:`verdict`). The pressure field of the state the batch
+reached, with every predicted meniscus pinned, is solved and the batch accepted when
 
-* its flux split agrees with the predicted one: ``sum_i |q_i - q_i^pred| <= flux_tolerance Q``;
 * no meniscus is violated except the new ones of the batch's last fill (an opening there is what
-  the exact scheme would do right after that fill; one elsewhere may have been due earlier), and
-  no active meniscus is pushed back.
+  the exact scheme does right after that fill); a violated one of an earlier fill, or an older
+  pinned one whose excess (interpolated linearly in the fill index from the field before the
+  batch) crossed zero earlier, names the fill the batch must end at;
+* no active meniscus is pushed back, and the flux split agrees with the predicted one:
+  ``sum_i |q_i - q_i^pred| <= flux_tolerance Q`` (else half the batch).
 
 Accepted: the solve is the first one of the next event's active-set resolution (not repeated).
-Rejected: the state rolls back to the end of the batch's first fill (the exact scheme's event)
-and the next event is the exact one. ``m`` doubles after an accepted batch, up to
-``predict_fills``, and halves after a rejected one. Not a certificate: the check sees the end of
-the batch, not the states in between; the error is measured against the exact scheme
-(docs/drainage.md, "Several active menisci").
+Rejected: the state rolls back to the end of the batch's first fill (the exact scheme's event;
+arrays, history rows and counters restored) and the batch is retried with the size named, down
+to none, after which the next event is the exact one (and, after repeated rejections, the next
+few events are exact without an attempt). ``m`` doubles after an accepted batch, up to
+``predict_fills``. Not a certificate: the check sees the end of the batch, not the states in
+between. Measured (docs/drainage.md, "Several active menisci"): almost every batch is rejected,
+because a meniscus opens right after nearly every fill, so the option is off by default.
 """
 
 from __future__ import annotations

@@ -44,7 +44,9 @@ def _make_engine(graph, rate, inlet_pressure, opts: dict) -> Engine:
         local = (o.pop("local_solves"), o.pop("hops"), o.pop("local_menisci"), o.pop("tie_tolerance", 0.0))
         predict = (o.pop("predict_fills", 0), o.pop("flux_tolerance", 0.0))
         backoff = o.pop("backoff", 32)
-        return AdaptiveEngine(graph, rate, inlet_pressure, **o, local=local, predict=predict, backoff=backoff)
+        block = o.pop("block_pivots", "off") == "on"
+        return AdaptiveEngine(graph, rate, inlet_pressure, **o, local=local, predict=predict, backoff=backoff,
+                              block_pivots=block)
     return Engine(graph, rate, inlet_pressure, **o)
 
 
@@ -145,7 +147,8 @@ class DrainageSimulator:
             out.update(n_certified_fills=e.n_certified, n_local_solves=e.n_local, n_global_solves=e.n_global,
                        n_predicted_fills=getattr(e, "n_predicted", 0),
                        n_predict_batches=getattr(e, "n_predict_batches", 0),
-                       n_predict_rollbacks=getattr(e, "n_rollbacks", 0))
+                       n_predict_rollbacks=getattr(e, "n_rollbacks", 0),
+                       n_block_pivots=getattr(e, "n_block_pivots", 0), n_block_undos=getattr(e, "n_block_undos", 0))
         return out
 
     @property

@@ -486,7 +486,9 @@ def _woodbury(upd, y):
     if lu_m is None:
         return y
     z = sla.lu_solve(lu_m, y[S], check_finite=False)
-    return y - (D @ z) @ WT[cS]
+    coef = np.zeros(WT.shape[0])  # the correction as a combination of all cached rows: no copy of
+    coef[cS] = D @ z  # the |S| rows it needs (at 64k unknowns, 500 rows: a 256 MB copy per call)
+    return y - coef @ WT
 
 
 def _lu(As):

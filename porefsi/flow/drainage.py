@@ -36,6 +36,7 @@ from porefsi.errors import InputError
 from porefsi.flow import _drainage_checkpoint as _ckpt
 from porefsi.flow._drainage_options import (
     DEFAULT_BACKOFF,
+    DEFAULT_BLOCK_PIVOTS,
     DEFAULT_FLUX_TOLERANCE,
     DEFAULT_PREDICT_FILLS,
     SCHEMES,
@@ -52,7 +53,7 @@ from porefsi.network.network import Network
 #: Options added after checkpoints with the options object existed: left out of a run's
 #: fingerprint at these (their defaults, the earlier behaviour), so those checkpoints still resume.
 _LATER_KNOBS = {"predict_fills": DEFAULT_PREDICT_FILLS, "flux_tolerance": DEFAULT_FLUX_TOLERANCE,
-                "backoff": DEFAULT_BACKOFF}
+                "backoff": DEFAULT_BACKOFF, "block_pivots": DEFAULT_BLOCK_PIVOTS}
 
 __all__ = ["DrainageSimulator", "DrainageResult", "DrainageOptions", "RunControl", "simulate_drainage", "PAPER_RATE",
            "PAPER_T_END", "HISTORY_COLUMNS", "OUTLET_PRESSURE", "SCHEMES", "DEFAULT_SCHEME"]
