@@ -38,9 +38,10 @@ CHECKPOINT = "drainage_checkpoint.npz"
 def register(subparsers) -> None:
     """Add the ``drainage`` subcommand."""
     from porefsi.cli._extract import add_network_args
-    from porefsi.flow._drainage_options import DEFAULT_BACKOFF, DEFAULT_FLUX_TOLERANCE, DEFAULT_TIE_TOLERANCE
+    from porefsi.flow import DrainageOptions
     from porefsi.flow.drainage import DEFAULT_SCHEME, PAPER_RATE, PAPER_T_END, SCHEMES
 
+    defaults = DrainageOptions()  # the option defaults, shown in --help
     p = subparsers.add_parser(
         "drainage", help="dynamic two-phase drainage (non-wetting injection at constant rate)",
         description="Inject the non-wetting fluid at a constant rate through the low face of --axis and "
@@ -63,20 +64,20 @@ def register(subparsers) -> None:
     p.add_argument("--tie-tolerance", type=_nonnegative_float, default=None, metavar="TAU",
                    help="adaptive only: relative band by which a quasi-static fill's pressure bound may exceed the "
                    "next threshold and still be filled without a solve (0 = the rigorous certificate; default "
-                   f"{DEFAULT_TIE_TOLERANCE:g}, applied up to Ca = 1e-6)")
+                   f"{defaults.tie_tolerance:g}, applied up to Ca = 1e-6)")
     p.add_argument("--predict-fills", type=_nonnegative_int, default=None, metavar="M",
                    help="adaptive only: with active menisci, most fills made with the last solve's flux split "
                    "before one solve checks them (rolled back if the check fails); 0 = off, the default "
                    "(measured to save nothing, docs/drainage.md)")
     p.add_argument("--flux-tolerance", type=_nonnegative_float, default=None, metavar="EPS",
                    help=f"adaptive only: the --predict-fills check's tolerance on the flux split, sum |dq| / rate "
-                   f"(default {DEFAULT_FLUX_TOLERANCE:g}, at most 2)")
+                   f"(default {defaults.flux_tolerance:g}, at most 2)")
     p.add_argument("--block-pivots", choices=("on", "off"), default=None,
                    help="adaptive only: close every pushed-back meniscus of an event at once, checked by the next "
                    "solve (on, the default) or one per solve as the exact scheme (off)")
     p.add_argument("--backoff", type=_nonnegative_int, default=None, metavar="STEPS",
                    help=f"adaptive only: most steps without a quasi-static batch attempt after attempts that "
-                   f"certified nothing (0 = attempt at every step; default {DEFAULT_BACKOFF})")
+                   f"certified nothing (0 = attempt at every step; default {defaults.backoff})")
     p.add_argument("--snapshots", type=int, default=5, metavar="K",
                    help="number of evenly spaced per-pore snapshots written to DIR (default 5)")
     p.add_argument("-o", "--output", default=None, metavar="DIR",

@@ -29,6 +29,7 @@ like the exact scheme's skipped solves).
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import weakref
 
@@ -51,7 +52,7 @@ from porefsi.flow._drainage_options import (
     DEFAULT_TIE_TOLERANCE,
 )
 
-__all__ = ["AdaptiveEngine", "DEFAULT_LOCAL_SOLVES", "DEFAULT_HOPS", "DEFAULT_LOCAL_MENISCI"]
+__all__ = ["AdaptiveEngine", "AdaptiveTuning", "DEFAULT_LOCAL_SOLVES", "DEFAULT_HOPS", "DEFAULT_LOCAL_MENISCI"]
 
 #: Relative safety of the certificate against round-off in the bound (as the exact scheme's skip).
 _SAFETY = 1e-9
@@ -72,6 +73,44 @@ def _resistances(g: DrainageGraph):
     return r
 
 
+@dataclasses.dataclass(frozen=True)
+class AdaptiveTuning:
+    """Knobs of the adaptive scheme (:class:`AdaptiveEngine`), from :class:`DrainageOptions`.
+
+    Attributes
+    ----------
+    local_solves, hops, local_menisci : int
+        Local solves allowed between two global ones (0: every solve is global), radius in
+        throats of the wetting patches of a local solve, most active menisci for a local solve.
+    tie_tolerance : float
+        Relative band by which the certificate's bound may exceed the next threshold (0: the
+        rigorous certificate; > 0: near-ties are filled in invasion-percolation order, an
+        approximation measured in docs/drainage.md).
+    batch : int
+        Most fills predicted (and certified) per batch; cost only, never the outcome.
+    predict_fills, flux_tolerance : int, float
+        The flux-split predictor-corrector (:mod:`porefsi.flow._drainage_predictor`) where menisci
+        are active: most fills per predicted batch (0 or 1: off, the exact scheme's events) and
+        the corrector's tolerance on the flux split (L1, relative to the rate).
+    backoff : int
+        Most steps without a quasi-static batch attempt after attempts that certified nothing
+        (doubling from 1; 0: attempt at every step). Cost only with ``tie_tolerance = 0``.
+    block_pivots : bool
+        Settle the menisci of an event in checked blocks (:mod:`porefsi.flow._drainage_pivots`)
+        instead of one per solve.
+    """
+
+    local_solves: int = DEFAULT_LOCAL_SOLVES
+    hops: int = DEFAULT_HOPS
+    local_menisci: int = DEFAULT_LOCAL_MENISCI
+    tie_tolerance: float = DEFAULT_TIE_TOLERANCE
+    batch: int = 64
+    predict_fills: int = DEFAULT_PREDICT_FILLS
+    flux_tolerance: float = DEFAULT_FLUX_TOLERANCE
+    backoff: int = DEFAULT_BACKOFF
+    block_pivots: bool = False
+
+
 class AdaptiveEngine(Engine):
     """Event engine with certified quasi-static batches (see module docstring).
 
@@ -83,36 +122,18 @@ class AdaptiveEngine(Engine):
         As for the exact engine: a jump that no batch certified still skips its solve when the
         exact scheme's one-path bound allows (measured: that bound, with the current wetting
         region, certifies more jumps than the batch bound, which must hold for the batch's end).
-    local : (int, int, int, float)
-        ``(local_solves, hops, local_menisci, tie_tolerance)``: local solves allowed between two
-        global ones (0: every solve is global), radius in throats of the wetting patches of a local
-        solve, most active menisci for a local solve, and the relative band by which the
-        certificate's bound may exceed the next threshold (0: the rigorous certificate; > 0:
-        near-ties are filled in invasion-percolation order, an approximation measured in
-        docs/drainage.md).
-    batch : int
-        Most fills predicted (and certified) per batch; cost only, never the outcome.
-    predict : (int, float)
-        ``(predict_fills, flux_tolerance)`` of the flux-split predictor-corrector
-        (:mod:`porefsi.flow._drainage_predictor`) where menisci are active: most fills per
-        predicted batch (0 or 1: off, the exact scheme's events) and the corrector's tolerance on
-        the flux split (L1, relative to the rate).
-    backoff : int
-        Most steps without a quasi-static batch attempt after attempts that certified nothing
-        (doubling from 1; 0: attempt at every step). Cost only with ``tie_tolerance = 0``.
-    block_pivots : bool
-        Settle the menisci of an event in checked blocks (:mod:`porefsi.flow._drainage_pivots`)
-        instead of one per solve.
+    tuning : AdaptiveTuning
+        The scheme's knobs.
     """
 
     def __init__(self, graph: DrainageGraph, rate: float | None, inlet_pressure: float | None,
                  solver: str = "auto", skip_solves: bool = False, max_active_set_iter: int | None = None, *,
-                 local: tuple = (DEFAULT_LOCAL_SOLVES, DEFAULT_HOPS, DEFAULT_LOCAL_MENISCI, DEFAULT_TIE_TOLERANCE),
-                 batch: int = 64, predict: tuple = (DEFAULT_PREDICT_FILLS, DEFAULT_FLUX_TOLERANCE),
-                 backoff: int = DEFAULT_BACKOFF, block_pivots: bool = False):
+                 tuning: AdaptiveTuning = AdaptiveTuning()):
         super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=skip_solves,
                          max_active_set_iter=max_active_set_iter)
-        local_solves, hops, local_menisci, tie = local
+        t = tuning
+        local_solves, hops, local_menisci, tie = t.local_solves, t.hops, t.local_menisci, t.tie_tolerance
+        batch, predict, backoff, block_pivots = t.batch, (t.predict_fills, t.flux_tolerance), t.backoff, t.block_pivots
         self.margin = 1.0 - _SAFETY + float(tie)  # certified: bound < margin x the next threshold
         self.max_menisci = int(local_menisci)
         self.batch = int(batch)

@@ -39,14 +39,14 @@ def _make_engine(graph, rate, inlet_pressure, opts: dict) -> Engine:
     """The event engine of the scheme named in ``opts`` (:meth:`DrainageOptions.engine_options`)."""
     o = dict(opts)
     if o.pop("scheme", "exact") == "adaptive":
-        from porefsi.flow._drainage_adaptive import AdaptiveEngine
+        from porefsi.flow._drainage_adaptive import AdaptiveEngine, AdaptiveTuning
 
-        local = (o.pop("local_solves"), o.pop("hops"), o.pop("local_menisci"), o.pop("tie_tolerance", 0.0))
-        predict = (o.pop("predict_fills", 0), o.pop("flux_tolerance", 0.0))
-        backoff = o.pop("backoff", 32)
-        block = o.pop("block_pivots", "off") == "on"
-        return AdaptiveEngine(graph, rate, inlet_pressure, **o, local=local, predict=predict, backoff=backoff,
-                              block_pivots=block)
+        tuning = AdaptiveTuning(
+            local_solves=o.pop("local_solves"), hops=o.pop("hops"), local_menisci=o.pop("local_menisci"),
+            tie_tolerance=o.pop("tie_tolerance", 0.0), predict_fills=o.pop("predict_fills", 0),
+            flux_tolerance=o.pop("flux_tolerance", 0.0), backoff=o.pop("backoff", 32),
+            block_pivots=o.pop("block_pivots", "off") == "on")
+        return AdaptiveEngine(graph, rate, inlet_pressure, **o, tuning=tuning)
     return Engine(graph, rate, inlet_pressure, **o)
 
 

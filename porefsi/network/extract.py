@@ -254,16 +254,14 @@ def extract_network(
         whose throat radius is at least ``merge_ratio`` times the smaller pore radius are
         merged (no real constriction separates them); in (0, 1].
     conductance : {'paper', 'shape_factor'} or None
-        Conduit model stored on the network (:attr:`Network.conductance`); ``None`` leaves the
-        default (``'shape_factor'``, since the extraction measures the sections). The measured
-        shape factors and duct fractions are stored either way.
+        Conduit model stored on the network (:attr:`Network.conductance`); ``None``: the default,
+        ``'shape_factor'``. The measured shape factors and duct fractions are stored either way.
 
     Returns
     -------
     Extraction
-        ``network`` (pores are the masters of the ball hierarchy; radii are the digital inscribed
-        radii of :func:`digital_radius`; volumes are region voxel counts), ``labels`` and
-        ``info``.
+        ``network`` (pores: the masters of the ball hierarchy; radii: :func:`digital_radius`;
+        volumes: region voxel counts), ``labels`` and ``info``.
 
     Raises
     ------
