@@ -114,12 +114,13 @@ def _rows(paths) -> list:
     return [json.loads(s) for p in paths for s in Path(p).read_text().splitlines() if s.strip()]
 
 
-def pooled_blocks(rows: list, name: str, axis: str) -> dict | None:
+def pooled_blocks(rows: list, name: str, axis: str, fallback_order: float | None = None) -> dict | None:
     """Pooled block sequence of image ``name`` along ``axis``: S_f = sum of the blocks' k at f = 1, 2.
 
     The pooled ratio is the dissipation-weighted mean of the block factors (porefsi.stokes.sampled,
     module notes). The order is observed on the blocks also solved at f = 3 (their pooled sums of
-    levels 1, 2, 3); every block solved at f = 1 and 2 enters the factor at that order.
+    levels 1, 2, 3; ``fallback_order`` if none along this axis); every block solved at f = 1 and 2
+    enters the factor at that order.
     """
     blocks = {}
     for r in rows:
@@ -127,20 +128,26 @@ def pooled_blocks(rows: list, name: str, axis: str) -> dict | None:
             blocks.setdefault(r["crop"], {})[r["refine"]] = r
     two = {c: b for c, b in blocks.items() if {1, 2} <= set(b)}
     three = {c: b for c, b in two.items() if 3 in b}
-    if not two or not three:
+    if not two or not (three or fallback_order):
         return None
-    s3 = [sum(b[f]["k_mD"] for b in three.values()) for f in (1, 2, 3)]
-    e3 = richardson([1, 2, 3], s3)
+    if three:
+        s3 = [sum(b[f]["k_mD"] for b in three.values()) for f in (1, 2, 3)]
+        e3 = richardson([1, 2, 3], s3)
+        order, observed, trusted, f3 = e3.order, e3.observed_order, e3.order_observed, e3.value / s3[0]
+    else:
+        order, observed, trusted, f3 = fallback_order, float("nan"), True, float("nan")
     sums = [sum(b[f]["k_mD"] for b in two.values()) for f in (1, 2)]
-    e = richardson([1, 2], sums, order=e3.order)
+    e = richardson([1, 2], sums, order=order)
     per = {c: [round(b[f]["k_mD"], 1) for f in sorted(b)] for c, b in two.items()}
-    return {"blocks": per, "sums_mD": sums, "order_observed": e3.observed_order, "order": e3.order,
-            "trusted": e3.order_observed, "factor": e.value / sums[0], "factor_3_levels": e3.value / s3[0],
+    return {"blocks": per, "sums_mD": sums, "order_observed": observed, "order": order,
+            "order_source": "observed on these blocks" if three else "observed along x",
+            "trusted": trusted, "factor": e.value / sums[0], "factor_3_levels": f3,
             "cpu_s": round(sum(r["cpu_s"] for b in two.values() for r in b.values()), 1),
             "loads": sorted({r["load_start"].split()[0] for b in two.values() for r in b.values()})}
 
 
-def converged_axis(rows: list, name: str, axis: str, native: float | None, order: float | None) -> dict | None:
+def converged_axis(rows: list, name: str, axis: str, native: float | None, order: float | None,
+                   fallback_order: float | None = None) -> dict | None:
     """Converged k of the whole image along ``axis``: Richardson of its own levels, or native x block factor.
 
     ``native``: the stored native k (mD), used as level 1 when no f = 1 solve is in ``rows``.
@@ -149,7 +156,7 @@ def converged_axis(rows: list, name: str, axis: str, native: float | None, order
                  if r["image"] == name and r["axis"] == axis and not r.get("crop"))
     if seq and seq[0][0] != 1 and native:
         seq.insert(0, (1, native, float("nan"), "stored", ""))
-    blocks = pooled_blocks(rows, name, axis)
+    blocks = pooled_blocks(rows, name, axis, fallback_order)
     if len(seq) >= 2:
         levels, ks = [s[0] for s in seq], [s[1] for s in seq]
         e = richardson(levels, ks, order=None if len(seq) >= 3 else order)
@@ -164,7 +171,7 @@ def converged_axis(rows: list, name: str, axis: str, native: float | None, order
         k1 = seq[0][1] if seq else native
         out = {"k_mD": blocks["factor"] * k1, "method": "sampled defect correction: native whole-image k x pooled "
                "block factor", "levels": [1, 2, 3], "native_mD": k1, "order": blocks["order"],
-               "order_source": "observed (pooled blocks)" if blocks["trusted"] else "assumed",
+               "order_source": blocks["order_source"] if blocks["trusted"] else "assumed",
                "cpu_s": blocks["cpu_s"], "load": blocks["loads"]}
     else:
         return None
@@ -178,25 +185,43 @@ def run_summarise(a) -> dict:
     refs = json.loads(Path(a.reference).read_text()) if a.reference else {}
     out = {}
     for name in sorted({r["image"] for r in rows}):
+        if name == "berea_400" or (a.only and name not in a.only.split(",")):
+            continue
         per = {}
+        bx = pooled_blocks(rows, name, "x")
         for ax in "xyz":
             order = a.order
-            b = pooled_blocks(rows, name, ax) or pooled_blocks(rows, name, "x")
+            b = pooled_blocks(rows, name, ax, bx["order"] if bx else None)
             if b:
-                print(f"{name} {ax} blocks: {b['blocks']}, pooled order {b['order_observed']:.2f}, "
+                print(f"{name} {ax} blocks: {b['blocks']}, order {b['order']:.2f} ({b['order_source']}), "
                       f"factor {b['factor']:.3f} (blocks with 3 levels alone: {b['factor_3_levels']:.3f})")
-            if order is None and b and b["trusted"]:
-                order = b["order_observed"]
-            c = converged_axis(rows, name, ax, refs.get(name, {}).get(ax), order)
+            if order is None and (b or bx):
+                order = (b or bx)["order"]
+            c = converged_axis(rows, name, ax, refs.get(name, {}).get(ax), order, bx["order"] if bx else None)
             if c is None:
                 continue
+            if ax != "x" and c["method"].startswith("sampled") and per.get("x", {}).get("method", "").startswith(
+                    "whole") and refs.get(name, {}).get(ax):
+                # the whole image refined along x beats blocks along this axis: its factor, the blocks kept as
+                # the isotropy check (their factor along this axis against theirs along x)
+                fx = per["x"]["k_mD"] / refs[name]["x"]
+                c = {"k_mD": fx * refs[name][ax], "method": "stored native x the whole image's x-axis factor (this "
+                     "axis refined on blocks only, kept as the isotropy check)", "native_mD": refs[name][ax],
+                     "factor": fx, "order": per["x"]["order"], "order_source": per["x"]["order_source"],
+                     "blocks_check": c.get("blocks")}
             per[ax] = c
-            native = c.get("native_mD") or (c["k_levels_mD"][0] if c.get("levels", [0])[0] == 1 and "k_levels_mD"
-                                            in c else refs.get(name, {}).get(ax))
+        for ax in "xyz":  # an axis without its own levels or blocks: the x factor, flagged
+            if ax not in per and "x" in per and refs.get(name, {}).get(ax) and refs.get(name, {}).get("x"):
+                fx = per["x"]["k_mD"] / refs[name]["x"]
+                per[ax] = {"k_mD": fx * refs[name][ax], "method": "stored native x the x axis's factor (this axis "
+                           "not refined)", "native_mD": refs[name][ax], "factor": fx, "order": per["x"]["order"],
+                           "order_source": per["x"]["order_source"]}
+        for ax, c in per.items():
+            native = refs.get(name, {}).get(ax)
             fac = c["k_mD"] / native if native else float("nan")
-            print(f"{name} {ax}: {c['method']}: k_inf {c['k_mD']:.1f} mD, k_inf/k_1 {fac:.3f}, order {c['order']:.2f} "
-                  f"({c['order_source']})" + (f"; p=1 {c['k_p1_mD']:.1f}, p=2 {c['k_p2_mD']:.1f}" if "k_p1_mD" in c
-                                              else ""))
+            print(f"{name} {ax}: {c['method']}: k_inf {c['k_mD']:.1f} mD, k_inf/k_1(stored) {fac:.3f}, order "
+                  f"{c['order']:.2f} ({c['order_source']})" + (f"; p=1 {c['k_p1_mD']:.1f}, p=2 {c['k_p2_mD']:.1f}"
+                                                               if "k_p1_mD" in c else ""))
         if per:
             out[name] = per
     if a.write:
@@ -271,6 +296,7 @@ def main(argv=None):
                    help="order for two-level whole-image sequences (default: observed on the image's blocks)")
     m.add_argument("--reference", help="native references (network_accuracy_reference.json), for block factors")
     m.add_argument("--write", help="store a 'converged' entry per image in this reference JSON")
+    m.add_argument("--only", help="comma-separated image names")
     g = sub.add_parser("berea-blocks")
     g.add_argument("runs", nargs="+", help="JSON-lines files of solve (the blocks' ghost native solves)")
     g.add_argument("--channel", default=str(ROOT / "benchmarks" / "results_stokes_sampled_berea400.jsonl"))
