@@ -50,8 +50,6 @@ BEREA_VOXEL = 5.345e-6
 #: (benchmarks/bench_converged_reference.py; each with its method, levels, order, CPU and load in the
 #: "converged" entry of network_accuracy_reference.json, which supersedes this table when given
 #: with --reference; docs/verification.md, "Converged references measured per image (2026-12-02)").
-#: Factors left: blobs_p30 (one 40^3 crop of this image, f = 1, 2, 3) and spheres_p30_r6 (a 40^3
-#: crop of the phi 0.35, r 6 pack), not re-measured.
 CONVERGED = {
     "berea_400": {"x": 1219.0, "y": 1317.0, "z": 1360.0},
     # stored native x the pooled ghost factor of the 400^3 Berea's sampled blocks (0.787, 0.734, 0.721)
@@ -63,7 +61,12 @@ CONVERGED = {
     # whole image refined f = 2 along x (k2/k1 0.871), order 1.12 observed on a 56^3 block (f = 1, 2, 3):
     # factor 0.761; y, z: that factor (the block's y, z factors within 3 % of its x factor)
     "spheres_p35": {"x": 8565.9, "y": 12273.7, "z": 9991.1},
-    "blobs_p30": 0.787, "spheres_p30_r6": 0.604,
+    # sampled defect correction: 4 blocks of 40^3 per axis (one at f = 1, 2, 3 along x for the order)
+    "blobs_p30": {"x": 4807.7, "y": 2328.6, "z": 4704.2},
+    "blobs_p25": {"x": 899.5, "y": 1210.8, "z": 954.7},
+    "blobs_p25_mirror": {"x": 1053.1, "y": 830.2, "z": 966.8},
+    "blobs_p20": {"x": 969.2, "y": 233.8, "z": 665.0},
+    "spheres_p30_r6": {"x": 2499.9, "y": 2524.5, "z": 2502.9},
 }
 
 
