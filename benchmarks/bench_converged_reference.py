@@ -68,8 +68,9 @@ def _status(key: str) -> int:
 
 def _commit() -> str:
     try:
-        return subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, check=True).stdout.strip()
+        return subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "?"
 
@@ -79,7 +80,7 @@ def _image(name: str, data: str | None, crop: str | None):
         if n == name:
             if crop:
                 o0, o1, o2, b = (int(v) for v in crop.split(","))
-                pore = pore[o0:o0 + b, o1:o1 + b, o2:o2 + b]
+                pore = pore[o0 : o0 + b, o1 : o1 + b, o2 : o2 + b]
             return pore, vs
     raise SystemExit(f"unknown image {name!r}; see bench_network_accuracy.images")
 
@@ -95,14 +96,29 @@ def run_solve(a) -> dict:
     t0, c0 = time.perf_counter(), time.process_time()
     r = voxel_permeability(img, a.axis, wall=a.wall, refine=a.refine, rtol=a.rtol)
     row = {
-        "image": a.image, "crop": a.crop, "axis": a.axis, "refine": a.refine, "wall": a.wall, "rtol": a.rtol,
-        "k_mD": r.k_mD, "iterations": r.iterations, "flux_spread": r.flux_spread, "converged": r.converged,
-        "n_unknowns": int(r.n_unknowns), "cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - t0,
-        "peak_rss_bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, "rss_before_bytes": rss_before,
-        "estimate_refined_bytes": int(estimate), "estimate_solver_bytes": int(r.memory_bytes),
-        "n_pore": int(np.count_nonzero(img.pore)), "shape": list(img.shape),
-        "load_start": load0, "load_end": _load(), "date": datetime.datetime.now(datetime.UTC).isoformat(
-            timespec="seconds"), "commit": _commit(),
+        "image": a.image,
+        "crop": a.crop,
+        "axis": a.axis,
+        "refine": a.refine,
+        "wall": a.wall,
+        "rtol": a.rtol,
+        "k_mD": r.k_mD,
+        "iterations": r.iterations,
+        "flux_spread": r.flux_spread,
+        "converged": r.converged,
+        "n_unknowns": int(r.n_unknowns),
+        "cpu_s": time.process_time() - c0,
+        "wall_s": time.perf_counter() - t0,
+        "peak_rss_bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
+        "rss_before_bytes": rss_before,
+        "estimate_refined_bytes": int(estimate),
+        "estimate_solver_bytes": int(r.memory_bytes),
+        "n_pore": int(np.count_nonzero(img.pore)),
+        "shape": list(img.shape),
+        "load_start": load0,
+        "load_end": _load(),
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "commit": _commit(),
     }
     with open(a.out, "a", encoding="utf-8") as fh:
         fh.write(json.dumps(row) + "\n")
@@ -139,40 +155,67 @@ def pooled_blocks(rows: list, name: str, axis: str, fallback_order: float | None
     sums = [sum(b[f]["k_mD"] for b in two.values()) for f in (1, 2)]
     e = richardson([1, 2], sums, order=order)
     per = {c: [round(b[f]["k_mD"], 1) for f in sorted(b)] for c, b in two.items()}
-    return {"blocks": per, "sums_mD": sums, "order_observed": observed, "order": order,
-            "order_source": "observed on these blocks" if three else "observed along x",
-            "trusted": trusted, "factor": e.value / sums[0], "factor_3_levels": f3,
-            "cpu_s": round(sum(r["cpu_s"] for b in two.values() for r in b.values()), 1),
-            "loads": sorted({r["load_start"].split()[0] for b in two.values() for r in b.values()})}
+    return {
+        "blocks": per,
+        "sums_mD": sums,
+        "order_observed": observed,
+        "order": order,
+        "order_source": "observed on these blocks" if three else "observed along x",
+        "trusted": trusted,
+        "factor": e.value / sums[0],
+        "factor_3_levels": f3,
+        "cpu_s": round(sum(r["cpu_s"] for b in two.values() for r in b.values()), 1),
+        "loads": sorted({r["load_start"].split()[0] for b in two.values() for r in b.values()}),
+    }
 
 
-def converged_axis(rows: list, name: str, axis: str, native: float | None, order: float | None,
-                   fallback_order: float | None = None) -> dict | None:
+def converged_axis(
+    rows: list, name: str, axis: str, native: float | None, order: float | None, fallback_order: float | None = None
+) -> dict | None:
     """Converged k of the whole image along ``axis``: Richardson of its own levels, or native x block factor.
 
     ``native``: the stored native k (mD), used as level 1 when no f = 1 solve is in ``rows``.
     """
-    seq = sorted((r["refine"], r["k_mD"], r["cpu_s"], r["load_start"].split()[0], r["date"]) for r in rows
-                 if r["image"] == name and r["axis"] == axis and not r.get("crop"))
+    seq = sorted(
+        (r["refine"], r["k_mD"], r["cpu_s"], r["load_start"].split()[0], r["date"])
+        for r in rows
+        if r["image"] == name and r["axis"] == axis and not r.get("crop")
+    )
     if seq and seq[0][0] != 1 and native:
         seq.insert(0, (1, native, float("nan"), "stored", ""))
     blocks = pooled_blocks(rows, name, axis, fallback_order)
     if len(seq) >= 2:
         levels, ks = [s[0] for s in seq], [s[1] for s in seq]
         e = richardson(levels, ks, order=None if len(seq) >= 3 else order)
-        out = {"k_mD": e.value, "method": "whole-image refinement, Richardson", "levels": levels,
-               "k_levels_mD": ks, "order": e.order, "order_source": "observed" if len(seq) >= 3 else
-               ("observed on the image's refined blocks" if order else "assumed"), "gci_mD": e.uncertainty,
-               "cpu_s": [round(s[2], 1) for s in seq], "load": [s[3] for s in seq], "date": seq[-1][4][:10]}
+        out = {
+            "k_mD": e.value,
+            "method": "whole-image refinement, Richardson",
+            "levels": levels,
+            "k_levels_mD": ks,
+            "order": e.order,
+            "order_source": "observed"
+            if len(seq) >= 3
+            else ("observed on the image's refined blocks" if order else "assumed"),
+            "gci_mD": e.uncertainty,
+            "cpu_s": [round(s[2], 1) for s in seq],
+            "load": [s[3] for s in seq],
+            "date": seq[-1][4][:10],
+        }
         f = levels[-1] / levels[-2]
         out["k_p1_mD"] = ks[-1] + (ks[-1] - ks[-2]) / (f - 1)
         out["k_p2_mD"] = ks[-1] + (ks[-1] - ks[-2]) / (f**2 - 1)
     elif blocks and (native or seq):
         k1 = seq[0][1] if seq else native
-        out = {"k_mD": blocks["factor"] * k1, "method": "sampled defect correction: native whole-image k x pooled "
-               "block factor", "levels": [1, 2, 3], "native_mD": k1, "order": blocks["order"],
-               "order_source": blocks["order_source"] if blocks["trusted"] else "assumed",
-               "cpu_s": blocks["cpu_s"], "load": blocks["loads"]}
+        out = {
+            "k_mD": blocks["factor"] * k1,
+            "method": "sampled defect correction: native whole-image k x pooled block factor",
+            "levels": [1, 2, 3],
+            "native_mD": k1,
+            "order": blocks["order"],
+            "order_source": blocks["order_source"] if blocks["trusted"] else "assumed",
+            "cpu_s": blocks["cpu_s"],
+            "load": blocks["loads"],
+        }
     else:
         return None
     if blocks:
@@ -193,35 +236,54 @@ def run_summarise(a) -> dict:
             order = a.order
             b = pooled_blocks(rows, name, ax, bx["order"] if bx else None)
             if b:
-                print(f"{name} {ax} blocks: {b['blocks']}, order {b['order']:.2f} ({b['order_source']}), "
-                      f"factor {b['factor']:.3f} (blocks with 3 levels alone: {b['factor_3_levels']:.3f})")
+                print(
+                    f"{name} {ax} blocks: {b['blocks']}, order {b['order']:.2f} ({b['order_source']}), "
+                    f"factor {b['factor']:.3f} (blocks with 3 levels alone: {b['factor_3_levels']:.3f})"
+                )
             if order is None and (b or bx):
                 order = (b or bx)["order"]
             c = converged_axis(rows, name, ax, refs.get(name, {}).get(ax), order, bx["order"] if bx else None)
             if c is None:
                 continue
-            if ax != "x" and c["method"].startswith("sampled") and per.get("x", {}).get("method", "").startswith(
-                    "whole") and refs.get(name, {}).get(ax):
+            if (
+                ax != "x"
+                and c["method"].startswith("sampled")
+                and per.get("x", {}).get("method", "").startswith("whole")
+                and refs.get(name, {}).get(ax)
+            ):
                 # the whole image refined along x beats blocks along this axis: its factor, the blocks kept as
                 # the isotropy check (their factor along this axis against theirs along x)
                 fx = per["x"]["k_mD"] / refs[name]["x"]
-                c = {"k_mD": fx * refs[name][ax], "method": "stored native x the whole image's x-axis factor (this "
-                     "axis refined on blocks only, kept as the isotropy check)", "native_mD": refs[name][ax],
-                     "factor": fx, "order": per["x"]["order"], "order_source": per["x"]["order_source"],
-                     "blocks_check": c.get("blocks")}
+                c = {
+                    "k_mD": fx * refs[name][ax],
+                    "method": "stored native x the whole image's x-axis factor (this "
+                    "axis refined on blocks only, kept as the isotropy check)",
+                    "native_mD": refs[name][ax],
+                    "factor": fx,
+                    "order": per["x"]["order"],
+                    "order_source": per["x"]["order_source"],
+                    "blocks_check": c.get("blocks"),
+                }
             per[ax] = c
         for ax in "xyz":  # an axis without its own levels or blocks: the x factor, flagged
             if ax not in per and "x" in per and refs.get(name, {}).get(ax) and refs.get(name, {}).get("x"):
                 fx = per["x"]["k_mD"] / refs[name]["x"]
-                per[ax] = {"k_mD": fx * refs[name][ax], "method": "stored native x the x axis's factor (this axis "
-                           "not refined)", "native_mD": refs[name][ax], "factor": fx, "order": per["x"]["order"],
-                           "order_source": per["x"]["order_source"]}
+                per[ax] = {
+                    "k_mD": fx * refs[name][ax],
+                    "method": "stored native x the x axis's factor (this axis not refined)",
+                    "native_mD": refs[name][ax],
+                    "factor": fx,
+                    "order": per["x"]["order"],
+                    "order_source": per["x"]["order_source"],
+                }
         for ax, c in per.items():
             native = refs.get(name, {}).get(ax)
             fac = c["k_mD"] / native if native else float("nan")
-            print(f"{name} {ax}: {c['method']}: k_inf {c['k_mD']:.1f} mD, k_inf/k_1(stored) {fac:.3f}, order "
-                  f"{c['order']:.2f} ({c['order_source']})" + (f"; p=1 {c['k_p1_mD']:.1f}, p=2 {c['k_p2_mD']:.1f}"
-                                                               if "k_p1_mD" in c else ""))
+            print(
+                f"{name} {ax}: {c['method']}: k_inf {c['k_mD']:.1f} mD, k_inf/k_1(stored) {fac:.3f}, order "
+                f"{c['order']:.2f} ({c['order_source']})"
+                + (f"; p=1 {c['k_p1_mD']:.1f}, p=2 {c['k_p2_mD']:.1f}" if "k_p1_mD" in c else "")
+            )
         if per:
             out[name] = per
     if a.write:
@@ -246,8 +308,11 @@ def run_berea_blocks(a) -> dict:
     closure of the stored native references. Pooled: sum k_inf / sum k_1 per axis.
     """
     ch = {(r["axis"], tuple(r["origin"])): r["k_mD"] for r in _rows([a.channel])}
-    gh = {(r["axis"], tuple(int(v) for v in r["crop"].split(",")[:3])): r["k_mD"] for r in _rows(a.runs)
-          if r["image"] == "berea_400" and r.get("crop") and r["refine"] == 1 and r["wall"] == "ghost"}
+    gh = {
+        (r["axis"], tuple(int(v) for v in r["crop"].split(",")[:3])): r["k_mD"]
+        for r in _rows(a.runs)
+        if r["image"] == "berea_400" and r.get("crop") and r["refine"] == 1 and r["wall"] == "ghost"
+    }
     out = {}
     for ax in "xyz":
         keys = sorted(k for k in ch if k[0] == ax and k in gh)
@@ -256,22 +321,32 @@ def run_berea_blocks(a) -> dict:
         kinf = {k: richardson([1, 2, 3], ch[k], order=a.order).value for k in keys}
         f = sum(kinf.values()) / sum(gh[k] for k in keys)
         out[ax] = {"factor": f, "blocks": {str(k[1]): [round(gh[k], 1), round(kinf[k], 1)] for k in keys}}
-        print(f"berea_400 {ax}: {len(keys)} blocks, pooled ghost k_inf/k_1 {f:.3f} (per block "
-              + ", ".join(f"{kinf[k] / gh[k]:.3f}" for k in keys) + ")")
+        print(
+            f"berea_400 {ax}: {len(keys)} blocks, pooled ghost k_inf/k_1 {f:.3f} (per block "
+            + ", ".join(f"{kinf[k] / gh[k]:.3f}" for k in keys)
+            + ")"
+        )
     if a.write:
         ref = json.loads(Path(a.write).read_text())
         conv = ref.setdefault("converged", {})
         loads = sorted({r["load_start"].split()[0] for r in _rows(a.runs) if r["image"] == "berea_400"})
         for crop in ("a", "b", "c", "d"):
             name = f"berea_200_{crop}"
-            conv[name] = {ax: round(out[ax]["factor"] * ref[name][ax], 1) for ax in out} | {"_detail": {
-                "method": "stored native (ghost) x the pooled ghost factor k_inf/k_1 of the 400^3 Berea's sampled "
-                          "40^3 blocks (5 per axis; k_inf from their channel sequences f = 1, 2, 3 at order "
-                          f"{a.order}); not measured on the crop itself",
-                "factor": {ax: round(v["factor"], 4) for ax, v in out.items()},
-                "blocks_ghost_k1_and_k_inf_mD": {ax: v["blocks"] for ax, v in out.items()},
-                "levels": [1, 2, 3], "order": a.order, "date": "2026-12-02", "load": loads,
-                "cpu_s": "blocks 33-126 s each for the three channel levels (docs/stokes.md), 1-2 s per ghost native"}}
+            conv[name] = {ax: round(out[ax]["factor"] * ref[name][ax], 1) for ax in out} | {
+                "_detail": {
+                    "method": "stored native (ghost) x the pooled ghost factor k_inf/k_1 of the 400^3 Berea's sampled "
+                    "40^3 blocks (5 per axis; k_inf from their channel sequences f = 1, 2, 3 at order "
+                    f"{a.order}); not measured on the crop itself",
+                    "factor": {ax: round(v["factor"], 4) for ax, v in out.items()},
+                    "blocks_ghost_k1_and_k_inf_mD": {ax: v["blocks"] for ax, v in out.items()},
+                    "levels": [1, 2, 3],
+                    "order": a.order,
+                    "date": "2026-12-02",
+                    "load": loads,
+                    "cpu_s": "blocks 33-126 s each for the three channel levels (docs/stokes.md), "
+                    "1-2 s per ghost native",
+                }
+            }
         tmp = Path(a.write).with_suffix(".tmp")
         tmp.write_text(json.dumps(ref, indent=1))
         tmp.replace(a.write)
@@ -292,8 +367,12 @@ def main(argv=None):
     s.add_argument("--out", required=True)
     m = sub.add_parser("summarise")
     m.add_argument("runs", nargs="+", help="JSON-lines files of solve")
-    m.add_argument("--order", type=float, default=None,
-                   help="order for two-level whole-image sequences (default: observed on the image's blocks)")
+    m.add_argument(
+        "--order",
+        type=float,
+        default=None,
+        help="order for two-level whole-image sequences (default: observed on the image's blocks)",
+    )
     m.add_argument("--reference", help="native references (network_accuracy_reference.json), for block factors")
     m.add_argument("--write", help="store a 'converged' entry per image in this reference JSON")
     m.add_argument("--only", help="comma-separated image names")
