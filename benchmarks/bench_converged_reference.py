@@ -8,21 +8,31 @@ into f^3), with the same options as the stored native references of
 ``network_accuracy_reference.json`` (``wall="ghost"``, pressure drop, 2 buffer layers, lateral
 walls), and the levels are Richardson-extrapolated (:func:`porefsi.stokes.richardson`).
 
-Two subcommands:
+Three subcommands:
 
 * ``solve``: one solve per call (so that the peak RSS is the solve's own), one JSON line appended
-  to ``--out``: k, iterations, CPU and wall seconds, peak RSS, the memory estimates
-  (``refined_memory_bytes`` and the solver's own), load, date, commit. Run heavy ones under the
-  shared lock, one at a time::
+  to ``--out``: k, iterations, CPU and wall seconds, peak RSS and the resident memory before the
+  solve, the memory estimates (``refined_memory_bytes`` and the solver's own), load, date, commit.
+  ``--crop o0,o1,o2,side`` solves a cubic block instead (the sampled defect correction's blocks).
+  Run heavy ones under the shared lock, one at a time::
 
-      flock /work/wt/heavy.lock python benchmarks/bench_converged_reference.py solve \\
-          --image spheres_p35 --axis x --refine 2 --out runs.jsonl [--crop 0,0,0,60]
+      flock /work/wt/heavy.lock python benchmarks/bench_converged_reference.py solve \
+          --image spheres_p35 --axis x --refine 2 --out runs.jsonl [--crop 32,32,32,56]
 
-* ``summarise``: per image and axis, Richardson-extrapolates the levels found (three levels: the
-  observed order; two: ``--order`` (default: the order observed on three-level crops of the same
-  image, if given with ``--order-from``), and prints the converged k, the factor k_inf/k_1 and
-  the variants at p = 1 and 2; ``--write FILE`` stores a ``converged`` entry per image in the
-  reference JSON.
+* ``summarise RUNS.jsonl ... --reference network_accuracy_reference.json [--write FILE]``: per image
+  and axis, the whole image's levels Richardson-extrapolated (two levels: at the order observed on
+  the image's blocks solved at f = 1, 2, 3; the stored native k is level 1 if not re-solved), else
+  the stored native k times the pooled block factor (blocks at f = 1, 2, the order from those at
+  f = 1, 2, 3 along this axis or along x); ``--write`` stores a ``converged`` entry per image.
+* ``berea-blocks RUNS.jsonl [--write FILE]``: the ghost factor of the 400^3 Berea from its sampled
+  blocks' channel sequences (``results_stokes_sampled_berea400.jsonl``) and their ghost natives,
+  applied to the stored natives of the 200^3 crops.
+
+Reproduce the 2026-12-02 values from the stored solves::
+
+    python benchmarks/bench_converged_reference.py summarise benchmarks/results_converged_reference.jsonl \
+        --reference benchmarks/network_accuracy_reference.json
+    python benchmarks/bench_converged_reference.py berea-blocks benchmarks/results_converged_reference.jsonl
 """
 
 from __future__ import annotations
