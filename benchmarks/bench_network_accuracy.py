@@ -45,22 +45,37 @@ from porefsi.network.extract import extract_network
 BEREA_DNS = {"x": 1360.0, "y": 1304.0, "z": 1193.0}
 BEREA_VOXEL = 5.345e-6
 
-#: Converged (refined + Richardson-extrapolated) voxel reference, estimated as the native voxel k
-#: times k_inf/k_1 measured on crops of the same kind of rock (docs/verification.md, "Against the
-#: rock: the converged voxel reference" and "With the staircase radius"): a factor, or per-axis
-#: converged values in mD. The blob factor is measured on phi 0.30 and *assumed* for the other blobs;
-#: the r 9 sphere pack's from three 40^3 crops of it (0.749, 0.713, 0.671; ghost wall, f = 1, 2, 3).
+#: Converged (refined + Richardson-extrapolated) voxel reference per image: per-axis values in mD, or a
+#: factor k_inf/k_1 applied to the stored native voxel k. The measured values of 2026-12-02
+#: (benchmarks/bench_converged_reference.py; each with its method, levels, order, CPU and load in the
+#: "converged" entry of network_accuracy_reference.json, which supersedes this table when given
+#: with --reference; docs/verification.md, "Converged references measured per image (2026-12-02)").
 CONVERGED = {
     "berea_400": {"x": 1219.0, "y": 1317.0, "z": 1360.0},
-    "berea_200_a": 0.699, "berea_200_b": 0.699, "berea_200_c": 0.699, "berea_200_d": 0.699,
+    # stored native x the pooled ghost factor of the 400^3 Berea's sampled blocks (0.787, 0.734, 0.721)
+    "berea_200_a": {"x": 1055.0, "y": 1457.7, "z": 1020.3},
+    "berea_200_b": {"x": 877.5, "y": 989.9, "z": 1149.4},
+    "berea_200_c": {"x": 1204.1, "y": 1278.2, "z": 1259.5},
+    "berea_200_d": {"x": 1999.9, "y": 1292.5, "z": 1339.1},
     "berea_120": {"x": 1622.0, "y": 543.0, "z": 954.0},
-    "blobs_p30": 0.787, "blobs_p25": 0.787, "blobs_p25_mirror": 0.787, "blobs_p20": 0.787,
-    "spheres_p30_r6": 0.604, "spheres_p35": 0.711,
+    # whole image refined f = 2 along x (k2/k1 0.871), order 1.12 observed on a 56^3 block (f = 1, 2, 3):
+    # factor 0.761; y, z: that factor (the block's y, z factors within 3 % of its x factor)
+    "spheres_p35": {"x": 8565.9, "y": 12273.7, "z": 9991.1},
+    # sampled defect correction: 4 blocks of 40^3 per axis (one at f = 1, 2, 3 along x for the order)
+    "blobs_p30": {"x": 4807.7, "y": 2328.6, "z": 4704.2},
+    "blobs_p25": {"x": 899.5, "y": 1210.8, "z": 954.7},
+    "blobs_p25_mirror": {"x": 1053.1, "y": 830.2, "z": 966.8},
+    "blobs_p20": {"x": 969.2, "y": 233.8, "z": 665.0},
+    "spheres_p30_r6": {"x": 2499.9, "y": 2524.5, "z": 2502.9},
 }
 
 
-def converged_reference(name: str, native: dict | None) -> dict | None:
-    """Converged voxel k per axis (mD) of image ``name`` from :data:`CONVERGED`, or None."""
+def converged_reference(name: str, native: dict | None, refs: dict | None = None) -> dict | None:
+    """Converged voxel k per axis (mD) of image ``name``: ``refs["converged"]`` if it has it, else
+    :data:`CONVERGED` (per-axis values, or a factor times ``native``), else None."""
+    measured = (refs or {}).get("converged", {}).get(name)
+    if measured:
+        return {ax: float(measured[ax]) for ax in "xyz" if ax in measured}
     c = CONVERGED.get(name)
     if isinstance(c, dict):
         return c
@@ -213,7 +228,7 @@ def main(argv=None) -> dict:
             ref = refs[name] = voxel_k(pore, vs)
             if a.reference:
                 Path(a.reference).write_text(json.dumps(refs, indent=1))
-        conv = converged_reference(name, ref if name != "berea_400" else None)
+        conv = converged_reference(name, ref if name != "berea_400" else None, refs)
         row = {"porosity": float(pore.mean()), "shape": list(pore.shape), "reference_mD": ref, "converged_mD": conv}
         models = a.models.split(",")
         for model in models:
