@@ -52,11 +52,11 @@ BEREA_VOXEL = 5.345e-6
 #: with --reference; docs/verification.md, "Converged references measured per image (2026-12-02)").
 CONVERGED = {
     "berea_400": {"x": 1219.0, "y": 1317.0, "z": 1360.0},
-    # stored native x the pooled ghost factor of the 400^3 Berea's sampled blocks (0.787, 0.734, 0.721)
-    "berea_200_a": {"x": 1055.0, "y": 1457.7, "z": 1020.3},
-    "berea_200_b": {"x": 877.5, "y": 989.9, "z": 1149.4},
-    "berea_200_c": {"x": 1204.1, "y": 1278.2, "z": 1259.5},
-    "berea_200_d": {"x": 1999.9, "y": 1292.5, "z": 1339.1},
+    # stored native x the crop's own pooled block factor (4 blocks of 40^3 per axis)
+    "berea_200_a": {"x": 1020.6, "y": 1604.5, "z": 1077.1},
+    "berea_200_b": {"x": 742.3, "y": 922.7, "z": 1262.1},
+    "berea_200_c": {"x": 1147.5, "y": 1104.4, "z": 1266.2},
+    "berea_200_d": {"x": 2061.3, "y": 1343.6, "z": 1415.4},
     "berea_120": {"x": 1622.0, "y": 543.0, "z": 954.0},
     # whole image refined f = 2 along x (k2/k1 0.871), order 1.12 observed on a 56^3 block (f = 1, 2, 3):
     # factor 0.761; y, z: that factor (the block's y, z factors within 3 % of its x factor)
