@@ -224,6 +224,12 @@ class Engine:
             raise ConvergenceError(
                 f"active-set resolution did not settle in {self.max_iter} iterations at t = {self.t:.6g} s; "
                 "pass a larger max_active_set_iter or report this network", history=hist)
+        self._settled_fluxes(cond, men, fa, hist)
+        return False
+
+    def _settled_fluxes(self, cond, men, fa, hist) -> None:
+        """Meniscus inflows ``q`` and outlet flows of the settled active set, from the solved ``P``."""
+        g, n = self.g, self.g.n
         em = np.flatnonzero(men)
         u = np.where(fa[em], g.a[em], g.b[em])
         x = np.where(fa[em], g.b[em], g.a[em])
@@ -243,7 +249,6 @@ class Engine:
             self.q_out_n *= s
             self.q_out_w = self.rate - self.q_out_n
         self.flux_valid = True
-        return False
 
     def _cheapest(self):
         g = self.g

@@ -84,27 +84,4 @@ def resolve(e) -> None:
             "pass a larger max_active_set_iter or report this network",
             history=hist,
         )
-    fluxes(e, cond, men, fa, hist)
-
-
-def fluxes(e, cond, men, fa, hist) -> None:
-    """The fluxes of the settled active set, as :meth:`Engine._resolve` computes them."""
-    g = e.g
-    n = g.n
-    em = np.flatnonzero(men)
-    u = np.where(fa[em], g.a[em], g.b[em])
-    x = np.where(fa[em], g.b[em], g.a[em])
-    f = np.maximum(cond[em] * (e.P[u] - e.P[x] - g.pcb[x]), 0.0)
-    e.q = np.bincount(x, f, minlength=n)[:n].astype(float)
-    oe = np.flatnonzero(~g.inner)
-    fo = cond[oe] * e.P[g.a[oe]]
-    e.q_out_n = float(np.sum(np.where(fa[oe], fo, 0.0)))
-    e.q_out_w = float(np.sum(np.where(fa[oe], 0.0, fo)))
-    tot = float(e.q.sum()) + e.q_out_n
-    if not tot > 0:
-        raise ConvergenceError(f"no non-wetting flux at t = {e.t:.6g} s although fluid is injected", history=hist)
-    s = e.rate / tot
-    e.q *= s
-    e.q_out_n *= s
-    e.q_out_w = e.rate - e.q_out_n
-    e.flux_valid = True
+    e._settled_fluxes(cond, men, fa, hist)
