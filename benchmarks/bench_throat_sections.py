@@ -295,6 +295,9 @@ def main(argv=None) -> dict:
     for c in chk:
         e = c["err"]
         print(f"  {c['shape']:8s} size {c['size']:4.1f} vox: {e[1.0]:+.3f} {e[0.5]:+.3f} {e[0.25]:+.3f}")
+    bad = [c for c in chk if c["size"] >= 3 and abs(c["err"][0.25]) > 0.08]
+    if bad:
+        raise RuntimeError(f"2-D solver off its closed forms at h = 1/4 (> 8 %): {bad}")
     imgs = {
         "spheres_p35_r9": lambda: sphere_pack(n=120, porosity=0.35, r_mean=9.0, seed=1),
         "spheres_p30_r6": lambda: sphere_pack(porosity=0.30, r_mean=6.0, seed=3),
