@@ -132,13 +132,11 @@ class AdaptiveEngine(Engine):
         super().__init__(graph, rate, inlet_pressure, solver=solver, skip_solves=skip_solves,
                          max_active_set_iter=max_active_set_iter)
         t = tuning
-        local_solves, hops, local_menisci, tie = t.local_solves, t.hops, t.local_menisci, t.tie_tolerance
-        batch, predict, backoff, block_pivots = t.batch, (t.predict_fills, t.flux_tolerance), t.backoff, t.block_pivots
-        self.margin = 1.0 - _SAFETY + float(tie)  # certified: bound < margin x the next threshold
-        self.max_menisci = int(local_menisci)
-        self.batch = int(batch)
-        self.hops = int(hops)
-        self.max_local = int(local_solves)
+        self.margin = 1.0 - _SAFETY + float(t.tie_tolerance)  # certified: bound < margin x the next threshold
+        self.max_menisci = int(t.local_menisci)
+        self.batch = int(t.batch)
+        self.hops = int(t.hops)
+        self.max_local = int(t.local_solves)
         self.local_left = 0  # local solves left before the next global one
         self.has_ref = False  # whether a global solve has set the reference below
         self.ref_data = np.zeros(graph.indices.size)  # matrix values, right-hand side and field of the
@@ -155,16 +153,16 @@ class AdaptiveEngine(Engine):
         self.n_dw_searches = 0
         self.backoff = 0  # after a batch that certified nothing, this many quiet steps skip the attempt
         self.backoff_left = 0  # (doubling up to max_backoff; a certified batch resets it)
-        self.max_backoff = int(backoff)
-        self.predict_fills = int(predict[0])
-        self.flux_tol = float(predict[1])
+        self.max_backoff = int(t.backoff)
+        self.predict_fills = int(t.predict_fills)
+        self.flux_tol = float(t.flux_tolerance)
         self.predict_m = 2  # fills of the next predicted batch (doubles on success, halves on failure, >= 2)
         self.predict_wait = self.predict_left = 0  # exact events without a prediction after rejections at 2
         self.p_current = False  # P solves the current configuration (a corrector's solve, reused once)
         self.n_predicted = 0  # fills made with a predicted flux split and accepted by the corrector
         self.n_predict_batches = 0
         self.n_rollbacks = 0
-        self.block_pivots = bool(block_pivots)
+        self.block_pivots = bool(t.block_pivots)
         self.n_block_pivots = 0  # block pivots made, and members undone by their check
         self.n_block_undos = 0
 
