@@ -25,6 +25,7 @@ from porefsi.cli._common import (
 from porefsi.cli._voxel import add_voxel_args, reject_voxel_options, run_voxel_permeability
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import AXES
+from porefsi.network.floor import FLOOR_PER_HYDRAULIC_RADIUS, MIN_RADIUS_VOXELS
 from porefsi.network.network import CONDUCTANCE_MODELS, Network
 
 __all__ = ["register", "add_network_args", "network_from_args", "run_extract", "run_permeability"]
@@ -89,7 +90,8 @@ def _add_extraction_args(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="auto|VOXELS",
         help="noise floor: a pore must hold a maximal ball at least this many voxels in radius; 'auto' sets it "
-        "from the image (0.93 hydraulic radii from the wall, at least 2 voxels: the same pores at any voxel size); "
+        f"from the image ({FLOOR_PER_HYDRAULIC_RADIUS:g} hydraulic radii from the wall, at least "
+        f"{MIN_RADIUS_VOXELS:g} voxels: the same pores at any voxel size); "
         f"a number (>= 1) fixes it in voxels, lower to find pores only a few voxels wide; default {d['min_radius']}",
     )
     g.add_argument(
