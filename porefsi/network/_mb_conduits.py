@@ -7,7 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from porefsi.network._mb_sections import _constriction_lengths, _sections, _stair_section_peaks, _subvoxel_peaks
+from porefsi.network._mb_sections import (
+    _constriction_lengths,
+    _sections,
+    _stair_section_peaks,
+    _subvoxel_peaks,
+    _walled_points,
+)
 from porefsi.network.network import CIRCLE_SHAPE_FACTOR
 
 __all__ = [
@@ -17,6 +23,18 @@ __all__ = [
 
 #: Smallest segment length of a conduit, in voxels (keeps every Network length > 0).
 MIN_SEGMENT = 0.05
+
+#: Axes whose two box faces are no-slip walls for the measured geometry ("wall" convention): the
+#: voxel reference's side walls. All three: one network for every flow axis (``docs/extraction.md``).
+BOX_WALLS = (True, True, True)
+
+
+def _walls(on: bool, open_axis: int = -1) -> np.ndarray:
+    """The ``walls`` flags (int64 (3,)) of the section kernels: :data:`BOX_WALLS` (but ``open_axis``), or none."""
+    w = np.array(BOX_WALLS if on else (False, False, False), dtype=np.int64)
+    if open_axis >= 0:
+        w[open_axis] = 0
+    return w
 
 
 def _sum_of_three_squares(n: np.ndarray) -> np.ndarray:
@@ -94,22 +112,36 @@ def _radius_table(dt2, convention: str = "digital") -> np.ndarray:
     return tab
 
 
-def subvoxel_radii(dt2, centre, point, conns, w):
-    """Pore and throat radii (voxels) of the measured geometry: the voxel staircase's own.
+def subvoxel_radii(dt2, labels, centre, conns):
+    """Throat points and pore and throat radii (voxels) of the measured geometry: the voxel staircase's own.
 
-    Pore: :func:`porefsi.network._mb_sections._subvoxel_peaks` at its master ball's centre voxel
-    (the distance to the nearest solid voxel cube plus the max-norm sub-voxel correction). Throat:
-    :func:`porefsi.network._mb_sections._stair_section_peaks` at the throat point, the largest
-    distance to the staircase over points within half a voxel in the interface plane (exactly the
-    same in metres at every refinement of the image), clipped to both pore radii. ``w`` (the
-    interface's largest ``dt2``) is unused: kept for the caller's signature.
+    The box faces of the :data:`BOX_WALLS` axes are walls, as the voxel reference's no-slip side
+    walls are (``docs/extraction.md``, "Box faces"). Throat point: the interface face of largest
+    ``min(d2)`` on the distance map with those faces solid
+    (:func:`porefsi.network._mb_sections._walled_points`). Throat radius:
+    :func:`porefsi.network._mb_sections._stair_section_peaks` there, the largest distance to the
+    staircase and the walled faces over points within half a voxel in the interface plane (the
+    same in metres at every refinement of the image), clipped to both pore radii. Pore:
+    :func:`porefsi.network._mb_sections._subvoxel_peaks` at its master ball's centre voxel (the
+    distance to the nearest solid voxel cube plus the max-norm sub-voxel correction) on the open
+    map: a master ball's centre often sits on the box face (the maximal balls see no wall there),
+    so walling it would read ~half a voxel (measured: the r 9 pack's k falls to 0.17x).
+
+    Returns
+    -------
+    point : ndarray of float64, shape (Nt, 3)
+    r_pore : ndarray of float64, shape (Np,)
+    r_throat : ndarray of float64, shape (Nt,)
     """
     tab = _radius_table(dt2, "wall")
-    c = np.rint(centre).astype(np.int64)
-    r_pore = _subvoxel_peaks(dt2, tab, c.astype(np.float64))
-    rt = _stair_section_peaks(dt2, point, 0.5, 4)
+    walls = _walls(True)
+    c = np.rint(centre).astype(np.float64)
+    r_pore = _subvoxel_peaks(dt2, tab, c)
+    n_p = np.int64(r_pore.size)
+    _, point = _walled_points(labels, dt2, conns, n_p, walls)
+    rt = _stair_section_peaks(dt2, point, 0.5, 4, walls)
     rt = np.minimum(rt, np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
-    return r_pore, rt
+    return point, r_pore, rt
 
 
 def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, convention="wall"):
@@ -122,17 +154,19 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, conven
     without throats. Duct lengths: each side's resistance-equivalent constriction length
     (:func:`porefsi.network._mb_sections._constriction_lengths`) makes the throat duct, the rest
     of the side the pore duct; each at least :data:`MIN_SEGMENT` voxels. ``convention`` ('wall'
-    or 'digital', the paper's) is the radius table the constriction samples read.
+    or 'digital', the paper's) is the radius table the constriction samples read; under 'wall'
+    the :data:`BOX_WALLS` faces are walls for the samples and end wall edges of the sections.
     """
     n_p = r_pore.size
-    area_vec, n_faces, n_wall = _sections(labels, conns, np.int64(n_p))
+    area_vec, n_faces, n_wall = _sections(labels, conns, np.int64(n_p), _walls(convention == "wall"))
     area = np.maximum(np.linalg.norm(area_vec, axis=1), np.pi * r_throat**2)
     throat_G = np.minimum(r_throat**2 / (4.0 * area), CIRCLE_SHAPE_FACTOR)
     wsum = np.bincount(conns.ravel(), weights=np.repeat(area, 2), minlength=n_p)
     gsum = np.bincount(conns.ravel(), weights=np.repeat(area * throat_G, 2), minlength=n_p)
     pore_G = np.where(wsum > 0, gsum / np.where(wsum > 0, wsum, 1.0), CIRCLE_SHAPE_FACTOR)
     rad_tab = _radius_table(dt2, convention)
-    d, side_lt = _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 0.25)
+    d, side_lt = _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 0.25,
+                                       _walls(convention == "wall"))
     ducts = np.column_stack([d[:, 0] - side_lt[:, 0], side_lt.sum(axis=1), d[:, 1] - side_lt[:, 1]])
     ducts = np.maximum(ducts, MIN_SEGMENT)
     return {
@@ -141,12 +175,25 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, conven
     }
 
 
-def _face_cuts(labels, dt2, n_p: int):
+def _layer_walled(d2, shape, ax: int, walls) -> np.ndarray:
+    """A face layer's ``dt2`` (2-D, normal ``ax``) with the walled in-plane box faces solid (as ``_d2``)."""
+    out = d2.astype(np.int64)
+    plane = [a for a in range(3) if a != ax]
+    for k, a in enumerate(plane):
+        if walls[a]:
+            n = shape[a]
+            i = np.arange(n)
+            g = np.minimum(i + 1, n - i).astype(np.int64) ** 2
+            out = np.minimum(out, g.reshape([-1, 1] if k == 0 else [1, -1]))
+    return np.where(d2 == 0, 0, out)
+
+
+def _face_cuts(labels, dt2, n_p: int, walls):
     """Per pore and face: voxels of its region in the face layer and the face point of its widest one.
 
     Returns ``count`` (Np, 6) int64 and ``point`` (Np, 6, 3) float64, the face point being the
-    centre of the widest (largest ``dt2``; the first in C order on ties) layer voxel moved half a
-    voxel outwards onto the box face.
+    centre of the widest (largest ``dt2``, the in-plane ``walls`` faces solid; the first in C order
+    on ties) layer voxel moved half a voxel outwards onto the box face.
     """
     count = np.zeros((n_p, 6), np.int64)
     point = np.zeros((n_p, 6, 3))
@@ -154,7 +201,7 @@ def _face_cuts(labels, dt2, n_p: int):
         ax, hi = divmod(col, 2)
         layer = labels.shape[ax] - 1 if hi else 0
         lab = np.take(labels, layer, axis=ax).ravel()
-        d2 = np.take(dt2, layer, axis=ax).ravel()
+        d2 = _layer_walled(np.take(dt2, layer, axis=ax), labels.shape, ax, walls).ravel()
         idx = np.flatnonzero(lab >= 0)
         count[:, col] = np.bincount(lab[idx], minlength=n_p)
         order = idx[np.lexsort((idx, -d2[idx].astype(np.int64), lab[idx]))]
@@ -173,21 +220,28 @@ def face_sections(labels, dt2, centre, r_pore, convention="wall"):
     For every pore region touching a box face: area ``A`` = its voxels in the face layer (voxel
     faces on the face), inscribed radius ``r`` = the largest distance to the voxel staircase
     within half a voxel of the face point in the face plane (:func:`_face_cuts`; the throat
-    radius's estimator, so outside the box counts as open as for the distance map), at most the
-    pore radius, ``A`` at least ``pi r^2``, ``G = r^2 / (4 A)`` (as for throats), and the share of
-    the pore-centre-to-face-point line the constriction takes: the resistance-equivalent
+    radius's estimator: the box faces of the other walled axes bound it and its samples under
+    the "wall" convention, none under the paper's), at most the pore radius, ``A`` at least
+    ``pi r^2``, ``G = r^2 / (4 A)`` (as for throats), and the share of the
+    pore-centre-to-face-point line the constriction takes: the resistance-equivalent
     constriction length (:func:`porefsi.network._mb_sections._constriction_lengths`) over the
     line's length. Voxel units; ``convention`` as in :func:`measure_sections`.
     """
     n_p = r_pore.size
-    count, point = _face_cuts(labels, dt2, n_p)
+    walled = convention == "wall"
+    count, point = _face_cuts(labels, dt2, n_p, _walls(walled))
     on = count > 0
     p_idx, col = np.nonzero(on)
     pts = point[p_idx, col]
-    r = np.minimum(_stair_section_peaks(dt2, pts, 0.5, 4), r_pore[p_idx])
+    r = np.minimum(_stair_section_peaks(dt2, pts, 0.5, 4, _walls(walled)), r_pore[p_idx])
     area = np.maximum(count[p_idx, col].astype(float), np.pi * r**2)
     conns = np.column_stack([p_idx, p_idx]).astype(np.int64)
-    d, lt = _constriction_lengths(dt2, _radius_table(dt2, convention), centre, pts, conns, r, r_pore, 0.25)
+    tab = _radius_table(dt2, convention)
+    d, lt = np.zeros((p_idx.size, 2)), np.zeros((p_idx.size, 2))
+    for ax in range(3):  # the face's own axis stays open: the reservoir is there
+        m = col // 2 == ax
+        d[m], lt[m] = _constriction_lengths(dt2, tab, centre, pts[m], conns[m], r[m], r_pore, 0.25,
+                                            _walls(walled, ax))
     out = {k: np.zeros((n_p, 6)) for k in ("radius", "G", "fraction")}
     out["radius"][p_idx, col] = r
     out["G"][p_idx, col] = np.minimum(r**2 / (4.0 * area), CIRCLE_SHAPE_FACTOR)

@@ -16,11 +16,12 @@ from porefsi._numba import jit
 
 
 @jit
-def _wall_edges(labels, i, j, k, ax):
+def _wall_edges(labels, i, j, k, ax, walls):
     """Edges of the face between voxel (i, j, k) and its +``ax`` neighbour that end at the wall.
 
     The face's four in-plane neighbour positions (the same pair of voxels shifted by one voxel
-    along each in-plane axis, inside the image) count when either voxel there is solid (< 0).
+    along each in-plane axis) count when either voxel there is solid (< 0), or when the position
+    is outside the image across a box face of an axis ``b`` with ``walls[b]`` set (a wall there).
     """
     dims = labels.shape
     n = 0
@@ -30,6 +31,7 @@ def _wall_edges(labels, i, j, k, ax):
         for s in (-1, 1):
             u = (i + s * (b == 0), j + s * (b == 1), k + s * (b == 2))
             if u[b] < 0 or u[b] >= dims[b]:
+                n += walls[b] != 0
                 continue
             if labels[u[0], u[1], u[2]] < 0 or labels[u[0] + (ax == 0), u[1] + (ax == 1), u[2] + (ax == 2)] < 0:
                 n += 1
@@ -37,7 +39,7 @@ def _wall_edges(labels, i, j, k, ax):
 
 
 @jit
-def _sections(labels, conns, n_pores):
+def _sections(labels, conns, n_pores, walls=None):
     """Vector area, face count and wall-edge count of every throat's interface.
 
     The interface of throat ``t`` is the set of voxel faces between a voxel of pore
@@ -46,9 +48,8 @@ def _sections(labels, conns, n_pores):
     ``-e_ax`` otherwise; their sum is the throat's *vector area* (its length is the area of the
     section projected on the plane it is closest to: exact for a flat section of any orientation,
     the staircase cancels). A *wall edge* is an edge of an interface face whose in-plane
-    neighbouring face position has a solid voxel on either side (:func:`_wall_edges`): the
-    interface ends at the wall there. Positions outside the image are not walls (the box cuts
-    the section).
+    neighbouring face position has a solid voxel on either side, or lies outside the image across
+    a box face of a walled axis (:func:`_wall_edges`): the interface ends at the wall there.
 
     Parameters
     ----------
@@ -57,6 +58,9 @@ def _sections(labels, conns, n_pores):
     conns : ndarray of int64, shape (Nt, 2)
         The throats, ``conns[:, 0] < conns[:, 1]``, each pair once.
     n_pores : int
+    walls : ndarray of int64, shape (3,), optional
+        Non-zero for an axis whose two box faces are walls; 0 (and the default): the box cuts the
+        section open.
 
     Returns
     -------
@@ -67,6 +71,7 @@ def _sections(labels, conns, n_pores):
         Wall edges (voxel-edge units).
     """
     nx, ny, nz = labels.shape
+    box = np.zeros(3, np.int64) if walls is None else walls
     n_t = conns.shape[0]
     table = Dict.empty(key_type=types.int64, value_type=types.int64)
     for t in range(n_t):
@@ -91,32 +96,102 @@ def _sections(labels, conns, n_pores):
                     t = table[key]
                     area[t, ax] += 1.0 if la < lb else -1.0
                     nf[t] += 1
-                    nw[t] += _wall_edges(labels, i, j, k, ax)
+                    nw[t] += _wall_edges(labels, i, j, k, ax, box)
     return area, nf, nw
 
 
 @jit
-def _ridge_radius(dt2, rad_tab, a, b, c, ux, uy, uz):
+def _d2(dt2, a, b, c, box):
+    """``dt2[a, b, c]`` with the box faces of every axis ``t`` with ``box[t]`` non-zero as solid.
+
+    A solid voxel layer just outside a face is nearest straight across: the squared distance from
+    voxel ``i`` to it is ``(i + 1)^2`` (low face) or ``(n - i)^2`` (high face), so the walled map is
+    ``min(dt2, those)`` (``tests/reference/sections_ref.py::box_walled`` pads the image instead).
+    """
+    v = np.int64(dt2[a, b, c])
+    if v == 0:
+        return v
+    nx, ny, nz = dt2.shape
+    if box[0] != 0:
+        g = np.int64(min(a + 1, nx - a))
+        v = min(v, g * g)
+    if box[1] != 0:
+        g = np.int64(min(b + 1, ny - b))
+        v = min(v, g * g)
+    if box[2] != 0:
+        g = np.int64(min(c + 1, nz - c))
+        v = min(v, g * g)
+    return v
+
+
+@jit
+def _walled_points(labels, dt2, conns, n_pores, walls):
+    """Each throat's largest ``w = min(d2[u], d2[v])`` over its interface faces and that face's centre.
+
+    ``d2`` is the distance map with the walled box faces as solid (:func:`_d2`); ties keep the
+    first face met in a C-order scan (x, then y, then z faces per voxel), as the extraction's
+    ``_interfaces`` does on the open map (equal to it when ``walls`` is all 0).
+
+    Returns
+    -------
+    w : ndarray of int64, shape (Nt,)
+    point : ndarray of float64, shape (Nt, 3)
+        Voxel-index coordinates (a face between voxels ``i`` and ``i + 1`` at ``i + 0.5``).
+    """
+    nx, ny, nz = labels.shape
+    n_t = conns.shape[0]
+    table = Dict.empty(key_type=types.int64, value_type=types.int64)
+    for t in range(n_t):
+        table[np.int64(conns[t, 0]) * n_pores + conns[t, 1]] = t
+    w = np.full(n_t, -1, np.int64)
+    point = np.zeros((n_t, 3), np.float64)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                la = labels[i, j, k]
+                if la < 0:
+                    continue
+                for ax in range(3):
+                    a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
+                    if a >= nx or b >= ny or c >= nz:
+                        continue
+                    lb = labels[a, b, c]
+                    key = np.int64(min(la, lb)) * n_pores + max(la, lb)
+                    if lb < 0 or lb == la or key not in table:
+                        continue
+                    t = table[key]
+                    v = min(_d2(dt2, i, j, k, walls), _d2(dt2, a, b, c, walls))
+                    if v > w[t]:
+                        w[t] = v
+                        point[t, 0] = i + 0.5 * (ax == 0)
+                        point[t, 1] = j + 0.5 * (ax == 1)
+                        point[t, 2] = k + 0.5 * (ax == 2)
+    return w, point
+
+
+@jit
+def _ridge_radius(dt2, rad_tab, a, b, c, ux, uy, uz, box):
     """Channel radius at voxel (a, b, c) on a line of unit direction u: the sub-voxel ridge estimate.
 
     ``f + max_b |g_perp,b|`` (capped at 1/2) with ``f`` the voxel's radius and ``g_perp`` the
     central-difference gradient of the radius with its component along u removed: the estimator
     of :func:`_subvoxel_peaks` applied across the channel, so a sample beside the channel's axis
-    reads the axis's radius, as the throat radius does at the throat.
+    reads the axis's radius, as the throat radius does at the throat. ``box``: the walled axes
+    (:func:`_d2`).
     """
-    f = _stair_rad(dt2, a, b, c)
+    f = _stair_rad(dt2, a, b, c, box)
     if f == 0.0:
         return 0.0
-    gx = 0.5 * (_rad_at(dt2, rad_tab, a + 1, b, c) - _rad_at(dt2, rad_tab, a - 1, b, c))
-    gy = 0.5 * (_rad_at(dt2, rad_tab, a, b + 1, c) - _rad_at(dt2, rad_tab, a, b - 1, c))
-    gz = 0.5 * (_rad_at(dt2, rad_tab, a, b, c + 1) - _rad_at(dt2, rad_tab, a, b, c - 1))
+    gx = 0.5 * (_rad_at(dt2, rad_tab, a + 1, b, c, box) - _rad_at(dt2, rad_tab, a - 1, b, c, box))
+    gy = 0.5 * (_rad_at(dt2, rad_tab, a, b + 1, c, box) - _rad_at(dt2, rad_tab, a, b - 1, c, box))
+    gz = 0.5 * (_rad_at(dt2, rad_tab, a, b, c + 1, box) - _rad_at(dt2, rad_tab, a, b, c - 1, box))
     gu = gx * ux + gy * uy + gz * uz
     px, py, pz = gx - gu * ux, gy - gu * uy, gz - gu * uz
     return f + min(max(abs(px), abs(py), abs(pz)), 0.5)
 
 
 @jit
-def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, step):
+def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, step, walls=None):
     r"""Per throat side: pore-centre-to-throat distance and its resistance-equivalent throat length.
 
     Side ``s`` of throat ``t`` is the segment from the centre of pore ``conns[t, s]`` to the throat
@@ -130,7 +205,8 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
 
     .. math:: L_t = \frac{I - d / R^4}{r_t^{-4} - R^{-4}} \in [0, d],
 
-    or ``d / 2`` when ``R <= r_t`` (no constriction: both ducts alike).
+    or ``d / 2`` when ``R <= r_t`` (no constriction: both ducts alike). ``walls`` (int64 (3,),
+    optional): axes whose box faces are solid for the samples (:func:`_d2`); none by default.
 
     Returns
     -------
@@ -139,7 +215,7 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
     lt : ndarray of float64, shape (Nt, 2)
         Throat-equivalent length of each side, voxels.
     """
-    nx, ny, nz = dt2.shape
+    box = np.zeros(3, np.int64) if walls is None else walls
     n_t = conns.shape[0]
     d_out = np.zeros((n_t, 2), np.float64)
     lt_out = np.zeros((n_t, 2), np.float64)
@@ -162,7 +238,7 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
             for q in range(m):
                 f = (q + 0.5) / m
                 x = (centre[p, 0] + f * dx, centre[p, 1] + f * dy, centre[p, 2] + f * dz)
-                r = _section_radius(dt2, rad_tab, x, (dx / d, dy / d, dz / d), e1, e2)
+                r = _section_radius(dt2, rad_tab, x, (dx / d, dy / d, dz / d), e1, e2, box)
                 r = min(max(r, rt), R)
                 acc += 1.0 / (r * r * r * r)
             integral = acc * d / m
@@ -195,7 +271,7 @@ def _nearest(x, n):
 
 
 @jit
-def _section_radius(dt2, rad_tab, x, u, e1, e2):
+def _section_radius(dt2, rad_tab, x, u, e1, e2, box):
     """Channel radius of the cross-section through point x normal to u: the widest ball centred there.
 
     ``rho`` is the radius at the voxel nearest to x (0 in solid). The voxels nearest to the points
@@ -203,14 +279,15 @@ def _section_radius(dt2, rad_tab, x, u, e1, e2):
     at x, so the search stays in the channel and scales with it) are searched for the largest
     radius, and the ridge estimate (:func:`_ridge_radius`) of that voxel is returned: a line
     running beside the channel's axis, at any offset the channel's own ball covers, reads the
-    axis's radius at every resolution.
+    axis's radius at every resolution. ``box``: the walled axes (:func:`_d2`).
     """
     nx, ny, nz = dt2.shape
     a, b, c = _nearest(x[0], nx), _nearest(x[1], ny), _nearest(x[2], nz)
-    rho = rad_tab[dt2[a, b, c]]
+    best = _d2(dt2, a, b, c, box)
+    rho = rad_tab[best]
     if rho == 0.0:
         return 0.0
-    best, ba, bb, bc = dt2[a, b, c], a, b, c
+    ba, bb, bc = a, b, c
     h = int(rho)
     for s in range(-h, h + 1):
         for t in range(-h, h + 1):
@@ -219,33 +296,36 @@ def _section_radius(dt2, rad_tab, x, u, e1, e2):
             i = _nearest(x[0] + s * e1[0] + t * e2[0], nx)
             j = _nearest(x[1] + s * e1[1] + t * e2[1], ny)
             k = _nearest(x[2] + s * e1[2] + t * e2[2], nz)
-            if dt2[i, j, k] > best:
-                best, ba, bb, bc = dt2[i, j, k], i, j, k
-    return _ridge_radius(dt2, rad_tab, ba, bb, bc, u[0], u[1], u[2])
+            v = _d2(dt2, i, j, k, box)
+            if v > best:
+                best, ba, bb, bc = v, i, j, k
+    return _ridge_radius(dt2, rad_tab, ba, bb, bc, u[0], u[1], u[2], box)
 
 
 @jit
-def _rad_at(dt2, rad_tab, a, b, c):
-    """Radius at voxel (a, b, c), 0 outside the image."""
+def _rad_at(dt2, rad_tab, a, b, c, box):
+    """Radius at voxel (a, b, c) on the walled map (:func:`_d2`), 0 outside the image."""
     nx, ny, nz = dt2.shape
     if a < 0 or a >= nx or b < 0 or b >= ny or c < 0 or c >= nz:
         return 0.0
-    return rad_tab[dt2[a, b, c]]
+    return rad_tab[_d2(dt2, a, b, c, box)]
 
 
 @jit
-def _stair_rad(dt2, a, b, c):
+def _stair_rad(dt2, a, b, c, box):
     """Distance (voxels) from the centre of voxel (a, b, c) to the nearest solid voxel *cube*; 0 in solid.
 
     The staircase's own inscribed radius: ``min sqrt(sum_i max(|k_i| - 1/2, 0)^2)`` over the
     offsets ``k`` of the solid voxels (outside the image is not solid, as in the distance map).
     The nearest solid centre (``sqrt(dt2)`` away) bounds it by ``sqrt(dt2) - 1/2``
     (:func:`wall_radius`), equal for an axis-aligned wall; :func:`_stair_dist` searches below it.
+    On the walled map (:func:`_d2`, ``box``) the bound is also the distance to the walled box
+    faces (``sqrt((i + 1)^2) - 1/2 = i + 1/2``), so those faces count as staircase walls.
     """
     nx, ny, nz = dt2.shape
     if a < 0 or a >= nx or b < 0 or b >= ny or c < 0 or c >= nz:
         return 0.0
-    d2 = dt2[a, b, c]
+    d2 = _d2(dt2, a, b, c, box)
     if d2 == 0:
         return 0.0
     return _stair_dist(dt2, float(a), float(b), float(c), math.sqrt(d2) - 0.5)
@@ -275,13 +355,32 @@ def _stair_dist(dt2, x, y, z, bound):
 
 
 @jit
-def _stair_section_peaks(dt2, points, half, n):
+def _box_gap(dims, x, y, z, walls, held):
+    """Distance from (x, y, z) to the nearest box face of a walled axis other than ``held``; inf if none.
+
+    Voxel ``i`` spans ``[i - 1/2, i + 1/2]``, so the faces of axis ``t`` lie at ``-1/2`` and
+    ``dims[t] - 1/2``.
+    """
+    g = np.inf
+    if held != 0 and walls[0] != 0:
+        g = min(g, x + 0.5, dims[0] - 0.5 - x)
+    if held != 1 and walls[1] != 0:
+        g = min(g, y + 0.5, dims[1] - 0.5 - y)
+    if held != 2 and walls[2] != 0:
+        g = min(g, z + 0.5, dims[2] - 0.5 - z)
+    return g
+
+
+@jit
+def _stair_section_peaks(dt2, points, half, n, walls):
     """Largest distance to the voxel staircase over a grid of points around each point, voxels.
 
     ``(2 n + 1)`` points per axis at spacing ``half / n`` within ``half`` of the point, in the
     interface plane for a face point (one half-integer coordinate: that axis is held), in 3-D for
     a voxel point: the staircase's own inscribed radius near the point, read at sub-voxel
     positions (so a channel whose axis falls between voxel centres reads the same at every grid).
+    The box faces of every axis with ``walls[axis]`` non-zero (int64 (3,)) other than the held one
+    are walls too (:func:`_box_gap`): a section the box cuts reads the radius of its part inside.
     """
     m = points.shape[0]
     out = np.zeros(m, np.float64)
@@ -300,7 +399,8 @@ def _stair_section_peaks(dt2, points, half, n):
                 for u in range(-n, n + 1):
                     if (held == 0 and s != 0) or (held == 1 and t != 0) or (held == 2 and u != 0):
                         continue
-                    d = _stair_dist(dt2, x0 + s * half / n, y0 + t * half / n, z0 + u * half / n, bound)
+                    x, y, z = x0 + s * half / n, y0 + t * half / n, z0 + u * half / n
+                    d = min(_stair_dist(dt2, x, y, z, bound), _box_gap(dt2.shape, x, y, z, walls, held))
                     if d > best:
                         best = d
         out[q] = best
@@ -308,12 +408,12 @@ def _stair_section_peaks(dt2, points, half, n):
 
 
 @jit
-def _face_rad(dt2, rad_tab, a, b, c, ax):
+def _face_rad(dt2, rad_tab, a, b, c, ax, box):
     """Radius at voxel (a, b, c), or (``ax`` >= 0) the mean over it and its +``ax`` neighbour (a face)."""
-    v = _stair_rad(dt2, a, b, c)
+    v = _stair_rad(dt2, a, b, c, box)
     if ax < 0:
         return v
-    return 0.5 * (v + _stair_rad(dt2, a + (ax == 0), b + (ax == 1), c + (ax == 2)))
+    return 0.5 * (v + _stair_rad(dt2, a + (ax == 0), b + (ax == 1), c + (ax == 2), box))
 
 
 @jit
@@ -343,6 +443,7 @@ def _subvoxel_peaks(dt2, rad_tab, points):
     -------
     ndarray of float64, shape (M,)
     """
+    box = np.zeros(3, np.int64)  # the open map: pore centres see no box wall
     m = points.shape[0]
     out = np.zeros(m, np.float64)
     for q in range(m):
@@ -358,8 +459,8 @@ def _subvoxel_peaks(dt2, rad_tab, points):
         for t in range(3):
             if t == ax:
                 continue
-            hi = _face_rad(dt2, rad_tab, a + (t == 0), b + (t == 1), c + (t == 2), ax)
-            lo = _face_rad(dt2, rad_tab, a - (t == 0), b - (t == 1), c - (t == 2), ax)
+            hi = _face_rad(dt2, rad_tab, a + (t == 0), b + (t == 1), c + (t == 2), ax, box)
+            lo = _face_rad(dt2, rad_tab, a - (t == 0), b - (t == 1), c - (t == 2), ax, box)
             g = max(g, 0.5 * abs(hi - lo))
-        out[q] = _face_rad(dt2, rad_tab, a, b, c, ax) + min(g, 0.5)
+        out[q] = _face_rad(dt2, rad_tab, a, b, c, ax, box) + min(g, 0.5)
     return out

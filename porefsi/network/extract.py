@@ -470,9 +470,10 @@ def _conduits(dt2, labels, top: _Topology, conductance) -> _Conduits:
     r_throat = np.minimum(digital_radius(np.maximum(top.w, 1)), np.minimum(r_pore[conns[:, 0]], r_pore[conns[:, 1]]))
     lt, lp = conduit_lengths(top.centre, r_pore, conns, r_throat, top.point)
     convention = "digital" if conductance == "paper" else "wall"
+    point = top.point
     if convention == "wall":
-        r_pore, r_throat = subvoxel_radii(dt2, top.centre, top.point, conns, top.w)
-    sec = measure_sections(labels, dt2, top.centre, top.point, conns, r_throat, r_pore, convention)
+        point, r_pore, r_throat = subvoxel_radii(dt2, labels, top.centre, conns)
+    sec = measure_sections(labels, dt2, top.centre, point, conns, r_throat, r_pore, convention)
     sec["face"] = face_sections(labels, dt2, top.centre, r_pore, convention)
     return _Conduits(r_pore, r_throat, lt, lp, sec)
 

@@ -7,19 +7,26 @@ no code with it.
 from __future__ import annotations
 
 import math
+from itertools import product
 
 import numpy as np
 
 
-def sections(labels, conns):
+def sections(labels, conns, walls=(0, 0, 0)):
     """Vector area (Nt, 3), face count and wall-edge count of every throat interface.
 
     Walk every pair of face-neighbouring voxels ``p`` (lower coordinate) and ``q = p + e_ax``;
     a pair labelled ``{a, b}`` of a listed throat adds ``+e_ax`` to its vector area if ``p`` is
     labelled with the throat's first pore, ``-e_ax`` otherwise. For each such face, look at the
     four faces obtained by shifting both voxels by one step along an in-plane axis: inside the
-    image, if either shifted voxel is solid (label < 0), the shared edge is a wall edge.
+    image, if either shifted voxel is solid (label < 0), the shared edge is a wall edge. With
+    ``walls``, the labels are first padded with a solid (-1) layer across both faces of each
+    walled axis, so the box faces there end the sections with wall edges.
     """
+    pad = [(1, 1) if w else (0, 0) for w in walls]
+    if any(walls):
+        area, faces, wall = sections(np.pad(labels, pad, constant_values=-1), conns)
+        return area, faces, wall
     index = {(int(a), int(b)): t for t, (a, b) in enumerate(conns)}
     n_t = len(conns)
     area = np.zeros((n_t, 3))
@@ -56,24 +63,65 @@ def sections(labels, conns):
     return area, faces, wall
 
 
-def stair_radius(dt2, idx):
-    """Distance from voxel ``idx``'s centre to the nearest solid voxel cube (``dt2 == 0``), by
-    brute force over every solid voxel; 0 in solid; the distance map's own bound
-    ``sqrt(dt2) - 1/2`` when no solid voxel lies in the image (outside is not solid)."""
+def _padded_solid(solid_mask, walls):
+    """Coordinates (in the box's frame) of the solid voxels of the image padded with one solid
+    voxel layer across both faces of every axis with ``walls[axis]`` set."""
+    pad = [(1, 1) if w else (0, 0) for w in walls]
+    padded = np.pad(np.asarray(solid_mask, bool), pad, constant_values=True)
+    return np.argwhere(padded) - np.array([p[0] for p in pad])
+
+
+def box_walled(pore, walls):
+    """Squared distance map of ``pore`` with solid layers just outside the faces of the walled axes:
+    brute force over the solid voxels of the padded image (:func:`_padded_solid`), cropped back."""
+    solid = _padded_solid(~np.asarray(pore, bool), walls)
+    out = np.zeros(pore.shape, np.int64)
+    for ijk in np.argwhere(pore):
+        out[tuple(ijk)] = int(((solid - ijk) ** 2).sum(axis=1).min())
+    return out
+
+
+def stair_radius(dt2, idx, walls=(0, 0, 0)):
+    """Distance from voxel ``idx``'s centre to the nearest solid voxel cube (``dt2 == 0``, plus the
+    solid layers across the walled box faces), by brute force over every solid voxel; 0 in solid;
+    the distance map's own bound ``sqrt(dt2) - 1/2`` when no solid voxel lies in the image
+    (outside is not solid)."""
     if dt2[idx] == 0:
         return 0.0
-    solid = np.argwhere(dt2 == 0)
+    solid = _padded_solid(dt2 == 0, walls)
     if solid.size == 0:
         return math.sqrt(dt2[idx]) - 0.5
     gap = np.maximum(np.abs(solid - np.asarray(idx)) - 0.5, 0.0)
     return float(np.sqrt((gap**2).sum(axis=1)).min())
 
 
-def ridge_radius(dt2, radius_of, idx, u):
+def stair_section_peaks(dt2, points, half, n, walls):
+    """Per point: the largest distance to the nearest solid voxel cube over the grid points at
+    spacing ``half / n`` within ``half`` per axis (only in the plane of a face point: the axis of its
+    half-integer coordinate is held), the image padded with solid layers across the faces of the
+    walled axes other than the held one (:func:`_padded_solid`); each distance at most
+    ``sqrt(max(dt2, 1)) + 2`` of the voxel nearest to the point (the search's reach)."""
+    out = np.zeros(len(points))
+    for q, p in enumerate(np.asarray(points, float)):
+        held = [a for a in range(3) if p[a] - math.floor(p[a]) > 0.25]
+        w = [walls[a] and a not in held for a in range(3)]
+        solid = _padded_solid(dt2 == 0, w)
+        near = tuple(min(max(math.floor(p[a] + 0.5), 0), dt2.shape[a] - 1) for a in range(3))
+        reach = math.sqrt(max(int(dt2[near]), 1)) + 2.0
+        steps = np.arange(-n, n + 1) * half / n
+        for off in product(*[[0.0] if a in held else steps for a in range(3)]):
+            x = p + np.array(off)
+            gap = np.maximum(np.abs(solid - x) - 0.5, 0.0)
+            d = float(np.sqrt((gap**2).sum(axis=1)).min()) if solid.size else reach
+            out[q] = max(out[q], min(d, reach))
+    return out
+
+
+def ridge_radius(dt2, radius_of, idx, u, walls=(0, 0, 0)):
     """Staircase radius at voxel ``idx`` (:func:`stair_radius`) plus the largest component of the
     across-line part of the central-difference gradient of ``radius_of`` (voxels outside the image
     read 0), capped at 1/2; 0 in solid."""
-    f = stair_radius(dt2, idx)
+    f = stair_radius(dt2, idx, walls)
     if f == 0:
         return 0.0
 
@@ -92,7 +140,7 @@ def ridge_radius(dt2, radius_of, idx, u):
     return f + min(float(np.max(np.abs(across))), 0.5)
 
 
-def section_radius(dt2, radius_of, x, u):
+def section_radius(dt2, radius_of, x, u, walls=(0, 0, 0)):
     """Largest ridge radius over the voxels nearest to the points x + s e1 + t e2 (integer s, t,
     s^2 + t^2 <= rho^2, rho the radius at the voxel nearest to x; e1, e2 an orthonormal pair
     normal to u, e1 from the x axis, or the y axis when u is within ~25 degrees of x); 0 in solid.
@@ -118,17 +166,18 @@ def section_radius(dt2, radius_of, x, u):
             v = nearest([x[k] + s * e1[k] + t * e2[k] for k in range(3)])
             if int(dt2[v]) > best:
                 best, where = int(dt2[v]), v
-    return ridge_radius(dt2, radius_of, where, u)
+    return ridge_radius(dt2, radius_of, where, u, walls)
 
 
-def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore, step):
+def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore, step, walls=(0, 0, 0)):
     """Side lengths d (Nt, 2) and resistance-equivalent throat lengths (Nt, 2), voxels.
 
     ``radius_of(v)`` gives the radius of a distance-map value. Along the straight segment from a
     pore centre to the throat point, midpoint samples of ``ceil(d / step)`` equal parts take the
     section radius (:func:`section_radius`) at the sample, clamped to [r_t, R]; the throat
     length solves
-    ``L_t / r_t^4 + (d - L_t) / R^4 = sum(dx / r^4)``.
+    ``L_t / r_t^4 + (d - L_t) / R^4 = sum(dx / r^4)``. With ``walls``, ``dt2`` is the walled map
+    (:func:`box_walled`) and the staircase includes the solid layers across the walled faces.
     """
     n_t = len(conns)
     d_out = np.zeros((n_t, 2))
@@ -147,7 +196,7 @@ def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore,
             total = 0.0
             for q in range(m):
                 x = [centre[p][k] + (q + 0.5) / m * vec[k] for k in range(3)]
-                r = min(max(section_radius(dt2, radius_of, x, [v / d for v in vec]), rt), R)
+                r = min(max(section_radius(dt2, radius_of, x, [v / d for v in vec], walls), rt), R)
                 total += (d / m) / r**4
             lt = (total - d / R**4) / (1 / rt**4 - 1 / R**4)
             lt_out[t, s] = min(max(lt, 0.0), d)
