@@ -100,12 +100,12 @@ def test_constriction_lengths_on_the_walled_map_match_the_twin():
     point = np.array([[9.5, 1.0, 4.0]])
     conns = np.array([[0, 1]])
     rt, rp = np.array([1.2]), np.array([3.0, 3.0])
-    got = _constriction_lengths(dt2, tab, centre, point, conns, rt, rp, 0.25, np.array(walls, np.int64))
+    got = _constriction_lengths(dt2, tab, centre, point, conns, rt, rp, np.array(walls, np.int64))
     want = constriction_lengths(dtw, lambda v: tab[v], centre.tolist(), point.tolist(), conns.tolist(),
                                 rt.tolist(), rp.tolist(), 0.25, walls)
     np.testing.assert_allclose(got[0], want[0], rtol=1e-12)
     np.testing.assert_allclose(got[1], want[1], rtol=1e-12, atol=1e-12)
-    open_ = _constriction_lengths(dt2, tab, centre, point, conns, rt, rp, 0.25)
+    open_ = _constriction_lengths(dt2, tab, centre, point, conns, rt, rp)
     assert np.all(got[1] > open_[1])  # the face narrows the samples: a longer constriction
 
 

@@ -196,7 +196,7 @@ def test_constriction_lengths_kernel_matches_twin_and_closed_form():
     point = 0.5 * (centre[conns[:, 0]] + centre[conns[:, 1]])
     rt = ext.network.throat_radius / vs  # the staircase's radii of the r 2 cylinders and r 5 spheres
     rp = ext.network.pore_radius / vs
-    got = _constriction_lengths(dt2, tab, centre, point, conns, rt, rp, 0.25)
+    got = _constriction_lengths(dt2, tab, centre, point, conns, rt, rp)
     want = constriction_lengths(dt2, lambda v: tab[v], centre.tolist(), point.tolist(), conns.tolist(),
                                 rt.tolist(), rp.tolist(), 0.25)
     np.testing.assert_allclose(got[0], want[0], rtol=1e-12)

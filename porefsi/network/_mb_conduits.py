@@ -165,7 +165,7 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, conven
     gsum = np.bincount(conns.ravel(), weights=np.repeat(area * throat_G, 2), minlength=n_p)
     pore_G = np.where(wsum > 0, gsum / np.where(wsum > 0, wsum, 1.0), CIRCLE_SHAPE_FACTOR)
     rad_tab = _radius_table(dt2, convention)
-    d, side_lt = _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 0.25,
+    d, side_lt = _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore,
                                        _walls(convention == "wall"))
     ducts = np.column_stack([d[:, 0] - side_lt[:, 0], side_lt.sum(axis=1), d[:, 1] - side_lt[:, 1]])
     ducts = np.maximum(ducts, MIN_SEGMENT)
@@ -240,8 +240,7 @@ def face_sections(labels, dt2, centre, r_pore, convention="wall"):
     d, lt = np.zeros((p_idx.size, 2)), np.zeros((p_idx.size, 2))
     for ax in range(3):  # the face's own axis stays open: the reservoir is there
         m = col // 2 == ax
-        d[m], lt[m] = _constriction_lengths(dt2, tab, centre, pts[m], conns[m], r[m], r_pore, 0.25,
-                                            _walls(walled, ax))
+        d[m], lt[m] = _constriction_lengths(dt2, tab, centre, pts[m], conns[m], r[m], r_pore, _walls(walled, ax))
     out = {k: np.zeros((n_p, 6)) for k in ("radius", "G", "fraction")}
     out["radius"][p_idx, col] = r
     out["G"][p_idx, col] = np.minimum(r**2 / (4.0 * area), CIRCLE_SHAPE_FACTOR)

@@ -14,6 +14,9 @@ from numba.typed import Dict
 
 from porefsi._numba import jit
 
+#: Spacing (voxels) of the constriction samples along a pore-centre-to-throat line.
+SAMPLE_STEP = 0.25
+
 
 @jit
 def _wall_edges(labels, i, j, k, ax, walls):
@@ -170,7 +173,7 @@ def _walled_points(labels, dt2, conns, n_pores, walls):
 
 
 @jit
-def _ridge_radius(dt2, rad_tab, a, b, c, ux, uy, uz, box):
+def _ridge_radius(dt2, rad_tab, a, b, c, u, box):
     """Channel radius at voxel (a, b, c) on a line of unit direction u: the sub-voxel ridge estimate.
 
     ``f + max_b |g_perp,b|`` (capped at 1/2) with ``f`` the voxel's radius and ``g_perp`` the
@@ -185,17 +188,18 @@ def _ridge_radius(dt2, rad_tab, a, b, c, ux, uy, uz, box):
     gx = 0.5 * (_rad_at(dt2, rad_tab, a + 1, b, c, box) - _rad_at(dt2, rad_tab, a - 1, b, c, box))
     gy = 0.5 * (_rad_at(dt2, rad_tab, a, b + 1, c, box) - _rad_at(dt2, rad_tab, a, b - 1, c, box))
     gz = 0.5 * (_rad_at(dt2, rad_tab, a, b, c + 1, box) - _rad_at(dt2, rad_tab, a, b, c - 1, box))
+    ux, uy, uz = u
     gu = gx * ux + gy * uy + gz * uz
     px, py, pz = gx - gu * ux, gy - gu * uy, gz - gu * uz
     return f + min(max(abs(px), abs(py), abs(pz)), 0.5)
 
 
 @jit
-def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, step, walls=None):
+def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, walls=None):
     r"""Per throat side: pore-centre-to-throat distance and its resistance-equivalent throat length.
 
     Side ``s`` of throat ``t`` is the segment from the centre of pore ``conns[t, s]`` to the throat
-    point. It is sampled at the midpoints of ``m = ceil(d / step)`` equal parts; each sample takes
+    point. It is sampled at the midpoints of ``m = ceil(d / SAMPLE_STEP)`` equal parts; each sample takes
     the section radius (:func:`_section_radius`: the widest channel centre within the ball
     inscribed at the sample, in the plane normal to the side), clamped to
     ``[r_throat[t], r_pore[p]]`` (a sample in solid, where the straight line leaves the pore
@@ -232,7 +236,7 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
             if R <= rt or d == 0.0:
                 lt_out[t, s] = 0.5 * d
                 continue
-            m = max(1, int(math.ceil(d / step)))
+            m = max(1, int(math.ceil(d / SAMPLE_STEP)))
             e1, e2 = _perp_basis(dx / d, dy / d, dz / d)
             acc = 0.0
             for q in range(m):
@@ -299,7 +303,7 @@ def _section_radius(dt2, rad_tab, x, u, e1, e2, box):
             v = _d2(dt2, i, j, k, box)
             if v > best:
                 best, ba, bb, bc = v, i, j, k
-    return _ridge_radius(dt2, rad_tab, ba, bb, bc, u[0], u[1], u[2], box)
+    return _ridge_radius(dt2, rad_tab, ba, bb, bc, u, box)
 
 
 @jit
