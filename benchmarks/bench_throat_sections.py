@@ -16,19 +16,23 @@ For every throat of the default (``shape_factor``) network:
 4. the network's law for the same throat, :func:`porefsi.network.geometry.duct_conductance_factor`
    of its ``throat_radius`` and ``throat_shape_factor``, and its area r²/(4G).
 
-Throats whose point lies nearer than their radius to a box face are reported apart: the
-extraction's distance map has no solid outside the box, so their network radius ignores the box
-face, which the voxel reference makes a no-slip wall (its four side faces) and this section makes
-a wall too. ``--face-test`` re-solves the network k per axis with those throats (side faces only)
-narrowed to their section's inscribed radius, a sensitivity, not a proposed fix.
+Throats whose point lies nearer than their radius to a box face are reported apart. Before
+2026-12-02 (commit ad39595) the extraction's distance map had no solid outside the box, so those
+radii ignored the box face, which the voxel reference makes a no-slip wall (its four side faces)
+and this section makes a wall too; ``--face-test`` re-solves the network k per axis with those
+throats (side faces only) narrowed to their section's inscribed radius (a sensitivity). The
+extraction now walls the box faces itself (throat points on the walled map, recovered here the
+same way), so the face-cut class is empty but for throats whose section plane is oblique, and
+the face test should move k by ~0.
 
 The 2-D solver is checked first against closed forms (circle pi R^4/8, square series, equilateral
 triangle sqrt(3) a^4/320) at several resolutions (``--check``). Voxel units throughout.
 
 Run: ``python benchmarks/bench_throat_sections.py --data /work/shared/data [--face-test] [--json out.json]``
 (about 30 s CPU for the four images).
-Uses two private helpers of the extraction (``_distance_map``, ``_kernels._interfaces``) to
-recover the throat points, which :class:`~porefsi.network.extract.Extraction` does not expose.
+Uses private helpers of the extraction (``_distance_map``, ``_mb_sections._walled_points`` with
+``_mb_conduits.BOX_WALLS``) to recover the throat points, which
+:class:`~porefsi.network.extract.Extraction` does not expose.
 """
 
 from __future__ import annotations
@@ -48,7 +52,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_network_accuracy import BEREA_VOXEL, blobs, sphere_pack  # noqa: E402
 
 from porefsi.image.voxel_image import VoxelImage  # noqa: E402
-from porefsi.network import _kernels as kern  # noqa: E402
+from porefsi.network._mb_conduits import BOX_WALLS  # noqa: E402
+from porefsi.network._mb_sections import _walled_points  # noqa: E402
 from porefsi.network.extract import _distance_map, extract_network  # noqa: E402
 from porefsi.network.geometry import TRIANGLE_MAX_G, duct_conductance_factor  # noqa: E402
 
@@ -165,9 +170,9 @@ def analyse(name: str, pore: np.ndarray, vs: float) -> dict:
     ext = extract_network(VoxelImage(pore.astype(np.uint8), voxel_size=vs))
     net = ext.network
     dt2 = _distance_map(np.ascontiguousarray(pore))
-    conns, _, point, _ = kern._interfaces(np.ascontiguousarray(ext.labels), dt2, np.int64(net.n_pores))
-    if not np.array_equal(np.sort(conns, axis=1), net.throat_conns):
-        raise RuntimeError(f"{name}: recomputed throats do not match the network's")
+    conns = net.throat_conns
+    _, point = _walled_points(np.ascontiguousarray(ext.labels), dt2, conns, np.int64(net.n_pores),
+                              np.array(BOX_WALLS, np.int64))
     t_ext = time.process_time() - t0
     centre = net.pore_coords / vs - 0.5
     r_t = net.throat_radius / vs
