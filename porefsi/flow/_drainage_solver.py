@@ -492,7 +492,16 @@ def _woodbury(upd, y):
 
 
 def _lu(As):
-    return spla.splu(As.tocsc(), permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
+    """Sparse LU of a scaled SPD matrix: minimum degree on ``A + A^T`` and diagonal pivots.
+
+    ``diag_pivot_thresh=0`` keeps the symmetric ordering (an SPD matrix needs no pivoting).
+    SciPy's default threshold (1.0, even with ``SymmetricMode``) swaps rows wherever an
+    off-diagonal entry of the scaled matrix outweighs the diagonal, which destroys the ordering:
+    measured on the 2x2x2-tiled Berea network (62 470 unknowns) 221 entries of L + U per unknown
+    and 4.9 CPU s per factorisation with it, 57 and 0.63 s without (base columns 12 -> 6 ms);
+    lattices (no such rows) are unchanged.
+    """
+    return spla.splu(As.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
 
 
 def _scaled(A, s):
