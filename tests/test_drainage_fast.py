@@ -22,6 +22,7 @@ def _run(net, fl, rate, prefetch, max_rank=None):
     sim = DrainageSimulator(net, fl, rate=rate, solver="lowrank")
     so = sim._engine.solver
     so.prefetch = prefetch
+    so.prefetch_fill = np.inf  # decided: the first factorisation keeps the setting
     if max_rank:
         so.max_rank = max_rank
     sim.advance_to(1e9, stop_at_breakthrough=True)
@@ -47,6 +48,22 @@ def test_prefetch_changes_cost_not_answer(rng):
     sa, sb = a._engine.solver, b._engine.solver
     assert sa.n_prefetched == 0 < sb.n_prefetched
     assert sb.n_column_batches < sa.n_column_batches
+
+
+@pytest.mark.parametrize("limit", [1.0, 1e6])
+def test_prefetch_is_kept_only_where_the_factor_is_dense(rng, monkeypatch, limit):
+    # the first factorisation switches prefetching off where the factor is sparse (batched columns
+    # cost about as much as single solves there; cost only: the answers are those of the test above)
+    from porefsi.flow import _drainage_solver as ds
+
+    monkeypatch.setattr(ds, "_PREFETCH_FILL", limit)
+    net = lattice_network((8, 6, 5), SPACING, rng)
+    fl = Fluids()
+    sim = DrainageSimulator(net, fl, rate=_rate_for_ca(net, fl, 1e-6), solver="lowrank")
+    sim.advance_to(1e9, stop_at_breakthrough=True)
+    so = sim._engine.solver
+    assert so.prefetch_fill > 1.0 and so.prefetch == (so.prefetch_fill >= limit)
+    assert (so.n_prefetched > 0) == so.prefetch
 
 
 def test_hint_covers_every_row_a_fill_changes(rng):
@@ -114,6 +131,7 @@ def _three_solvers(net, fl, **kw):
     for solver, prefetch in (("direct", False), ("lowrank", False), ("lowrank", True)):
         sim = DrainageSimulator(net, fl, solver=solver, **kw)
         sim._engine.solver.prefetch = prefetch
+        sim._engine.solver.prefetch_fill = np.inf  # forced: the first factorisation keeps the setting
         sim.advance_to(1e9, stop_at_breakthrough=True)
         runs.append(sim)
     assert runs[2]._engine.solver.n_prefetched > 0

@@ -150,3 +150,29 @@ def test_wetting_bound_from_a_cached_search_is_the_fresh_one_or_says_it_is_not(r
                 got, exact = kern._wetting_bound(x, adj, fresh, region, g.out_res_w[x])
                 assert exact and (got == pytest.approx(want, rel=1e-12) or got == want == np.inf)
     assert n_exact > 50 and n_stale > 5  # both branches taken
+
+
+@pytest.mark.parametrize("bc", ["rate", "pressure"])
+def test_edge_states_and_assembly_match_twin_to_the_bit(rng, bc):
+    g = _graph(rng, (7, 5, 4))
+    n, E = g.n, g.n_edges
+    diag_ref = (np.bincount(g.a, g.gw, minlength=n + 2) + np.bincount(g.b, g.gw, minlength=n + 2))[:n + 1]
+    rate, p_fixed = (3e-12, None) if bc == "rate" else (None, 2.5e4)
+    for _ in range(20):
+        full = rng.random(n) < 0.4
+        trapped = ~full & (rng.random(n) < 0.15)
+        inv = rng.random(E) < 0.6
+        closed = rng.random(E) < 0.2
+        got = kern._edge_states((g.a, g.b, n), g.inner, g.gn, g.gw, (full, trapped, inv, closed))
+        want = ref.edge_states(g, full, trapped, inv, closed)
+        for x, y in zip(got, want, strict=True):
+            np.testing.assert_array_equal(x, y)
+        cond, men, fa = want
+        assert men.any() and (cond == 0).any() and (cond == g.gw).any() and (cond == g.gn).any()
+        bcs = (rate or 0.0, p_fixed or 0.0, rate is not None)
+        got = kern._assemble((g.a, g.b, n), (g.inner, g.is_in_edge, men, fa), cond, g.pcb,
+                             (g.pos_diag, g.pos_ab, g.pos_ba, g.indices.size), diag_ref, bcs)
+        want = ref.assemble(g, cond, men, fa, rate, p_fixed, diag_ref)
+        for x, y in zip(got, want, strict=True):
+            np.testing.assert_array_equal(x, y)
+            assert np.array_equal(np.signbit(x), np.signbit(y))  # -0.0 where the twin has it

@@ -39,9 +39,9 @@ _FIX = "run again without --resume to start over (with --overwrite on the comman
 
 #: Engine attributes rebuilt by ``Engine(graph, rate, inlet_pressure, **options)`` (not stored).
 _ENGINE_DERIVED = frozenset({"g", "solver", "rate", "p_fixed", "skip_solves", "max_iter", "_nbr_res", "_diag_ref",
-                             "_ptol"})
+                             "_ptol", "_indptr"})
 #: Solver attributes that are factorisations (rebuilt) or the base (stored as its recipe).
-_SOLVER_DERIVED = frozenset({"_ml", "_ml_iters", "_base", "_saved_base"})
+_SOLVER_DERIVED = frozenset({"_ml", "_ml_iters", "_base", "_saved_base", "_dpos", "_dpos_for"})
 #: Every attribute of a DrainageSimulator this module knows how to store.
 _SIM_ATTRS = frozenset({"net", "fluids", "axis", "rate", "inlet_pressure_bc", "graph", "_opts", "_engine",
                         "last_remap", "options"})

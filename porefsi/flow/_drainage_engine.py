@@ -71,20 +71,14 @@ class Engine:
         return np.concatenate([self.full, [True, False]])
 
     def conductances(self):
-        """Edge conductances for the current configuration and the active-meniscus mask."""
+        """Edge conductances for the current configuration and the active-meniscus mask.
+
+        Returns ``(cond, men, fa)``, shapes (E,): conductances (m³/(Pa s)), active menisci, and
+        whether the edge's ``a`` end is non-wetting (numba kernel ``_edge_states``; its NumPy twin
+        is ``tests/reference/drainage_ref.edge_states``).
+        """
         g = self.g
-        fx = self._node_full()
-        tx = np.concatenate([self.trapped, [False, False]])
-        fa, fb = fx[g.a], fx[g.b]
-        out_e = ~g.inner
-        nw = (fa & fb) | (out_e & fa)
-        men = (fa ^ fb) & self.inv & ~self.closed & ~out_e
-        w = ~fa & ~fb
-        tr = tx[g.a] | tx[g.b]
-        men &= ~tr
-        cond = np.where(nw | men, g.gn, np.where(w, g.gw, 0.0))
-        cond[tr] = 0.0
-        return cond, men, fa
+        return kern._edge_states((g.a, g.b, g.n), g.inner, g.gn, g.gw, (self.full, self.trapped, self.inv, self.closed))
 
     def has_open_path(self) -> bool:
         """Whether injected fluid can move: an active meniscus or a non-wetting conduit to the outlet."""
@@ -114,40 +108,23 @@ class Engine:
         """Pressure matrix (CSR, the graph's fixed pattern), right-hand side and the active menisci's pores.
 
         Rows of nodes without a conducting edge are ``d x = 0`` with ``d`` the node's all-wetting
-        diagonal (see :meth:`solve`).
+        diagonal (see :meth:`solve`): a node without conducting edges (trapped, or the inlet before
+        any meniscus) is decoupled on the scale of the other rows, so the low-rank solver sees no
+        large diagonal jump when a node decouples or couples again. Numba kernel ``_assemble``
+        (same sums in the same order as its NumPy twin ``tests/reference/drainage_ref.assemble``,
+        so the same values to the bit).
         """
         g = self.g
         n = g.n
-        diag = (np.bincount(g.a, cond, minlength=n + 2) + np.bincount(g.b, cond, minlength=n + 2))[:n + 1]
-        rhs = np.zeros(n + 1)
-        off = np.where(g.inner, -cond, 0.0)
-        if self.rate is not None:
-            rhs[n] = self.rate
-        else:
-            ie = g.is_in_edge
-            np.add.at(rhs, g.b[ie], cond[ie] * self.p_fixed)
-            off[ie] = 0.0
-            diag[n] = 1.0
-            rhs[n] = self.p_fixed
-        em = np.flatnonzero(men)
-        u = np.where(fa[em], g.a[em], g.b[em])
-        x = np.where(fa[em], g.b[em], g.a[em])
-        src = cond[em] * g.pcb[x]
-        np.add.at(rhs, u, src)
-        np.add.at(rhs, x, -src)
-        zero = diag <= 0
-        # a node without conducting edges (trapped, or the inlet before any meniscus) is decoupled:
-        # its row is ``d x = 0`` with d its all-wetting diagonal, on the scale of the other rows, so
-        # the low-rank solver sees no large diagonal jump when a node decouples or couples again
         if getattr(self, "_diag_ref", None) is None:  # engines pickled before this attribute existed
             self._diag_ref = self._wetting_diagonal()
-        diag[zero] = self._diag_ref[zero]
-        rhs[zero] = 0.0
-        data = np.zeros(g.indices.size)
-        data[g.pos_diag] = diag
-        data[g.pos_ab[g.inner]] = off[g.inner]
-        data[g.pos_ba[g.inner]] = off[g.inner]
-        A = sp.csr_array((data, g.indices, g.pattern_indptr), shape=(n + 1, n + 1))
+        const_rate = self.rate is not None
+        bc = (float(self.rate) if const_rate else 0.0, 0.0 if const_rate else float(self.p_fixed), const_rate)
+        data, rhs, x = kern._assemble((g.a, g.b, n), (g.inner, g.is_in_edge, men, fa), cond, g.pcb,
+                                      (g.pos_diag, g.pos_ab, g.pos_ba, g.indices.size), self._diag_ref, bc)
+        if getattr(self, "_indptr", None) is None or self._indptr.dtype != g.indices.dtype:
+            self._indptr = g.pattern_indptr.astype(g.indices.dtype)  # one index dtype: no copies per call
+        A = sp.csr_array((data, g.indices, self._indptr), shape=(n + 1, n + 1))
         return A, rhs, x
 
     def _hint(self, targets, n_pinned: int = 2):

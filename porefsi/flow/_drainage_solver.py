@@ -126,6 +126,8 @@ class PressureSolver:
         self._amg_data = None  # values of the (scaled) matrix the AMG hierarchy was built from
         self._amg_ref = None  # CG iterations of the first solve after the build (rebuild at twice)
         self.fill = None  # 'lowrank_or_split': entries of L + U per unknown of the first factorisation
+        self.prefetch_fill = None  # fill of the first base, which decides whether to prefetch
+        self._dpos = self._dpos_for = None  # positions of the diagonal in the (fixed) pattern, and its indices
 
     def __setstate__(self, d):  # solvers pickled before the prefetch counters existed
         d.setdefault("prefetch", True)
@@ -135,6 +137,9 @@ class PressureSolver:
         d.setdefault("_amg_data", None)
         d.setdefault("_amg_ref", None)
         d.setdefault("split_rtol", _SPLIT_RTOL)
+        d.setdefault("prefetch_fill", -1.0)  # pickled before the rule: prefetch as it was
+        d.setdefault("_dpos", None)
+        d.setdefault("_dpos_for", None)
         for k in ("n_columns", "n_column_batches", "n_prefetched"):
             d.setdefault(k, 0)
         self.__dict__.update(d)
@@ -149,11 +154,25 @@ class PressureSolver:
         d = self.__dict__.copy()
         d["_ml"] = None
         d["_ml_iters"] = None
+        d["_dpos"] = d["_dpos_for"] = None
         base = d.pop("_base")
         d["_base"] = None
         if base is not None:
             d["_saved_base"] = {k: base[k] for k in ("data", "batches", "pref", "n_pref")}
         return d
+
+    def _diagonal(self, A):
+        """``A.diagonal()`` through cached positions while ``A`` keeps the same index array (the engine's pattern)."""
+        key = (A.indices.__array_interface__["data"][0], A.indices.size, A.shape[0])
+        cached = getattr(self, "_dpos_for", None)  # (solvers restored from a checkpoint lack it)
+        if cached is None or cached[0] != key:
+            rows = _rows(A)
+            pos = np.flatnonzero(rows == A.indices)
+            if pos.size != A.shape[0]:  # a row without a stored diagonal: no shortcut
+                return A.diagonal()
+            # the index array is held, so its memory cannot be reused by another pattern under the same key
+            self._dpos, self._dpos_for = pos[np.argsort(rows[pos], kind="stable")], (key, A.indices)
+        return A.data[self._dpos]
 
     def _restore_base(self, A):
         """Rebuild the base saved by :meth:`__getstate__` (pattern from ``A``); counters unchanged."""
@@ -186,7 +205,7 @@ class PressureSolver:
         lu0 = self._choose_by_fill(A) if self.method == "lowrank_or_split" else None
         if self.method == "lowrank" or (self.method == "hybrid" and frequent):
             return self._solve_lowrank(A, b, hint, lu0)
-        d = A.diagonal()
+        d = self._diagonal(A)
         s = 1.0 / np.sqrt(d)
         As = _scaled(A, s)
         bs = b * s
@@ -223,12 +242,16 @@ class PressureSolver:
     def _factor(self, A, lu=None):
         """Make ``A`` the low-rank base (``lu``: its scaled factor when already computed)."""
         t0 = time.perf_counter()
-        s = 1.0 / np.sqrt(A.diagonal())
+        s = 1.0 / np.sqrt(self._diagonal(A))
+        lu = _lu(_scaled(A, s)) if lu is None else lu
+        if self.prefetch and getattr(self, "prefetch_fill", None) is None:  # the first factorisation decides
+            self.prefetch_fill = float(lu.L.nnz + lu.U.nnz) / A.shape[0]
+            self.prefetch = self.prefetch_fill >= _PREFETCH_FILL
         budget = self.max_rank // 2 if self.prefetch else 0
         cap = self.max_rank + 64 + budget
         # columns A0^-1 e_v are stored as *rows* of WT (cap, n): a combination of a few of them
         # gathers contiguous rows instead of multiplying the whole (n, cap) block
-        self._base = dict(data=A.data.copy(), s=s, lu=_lu(_scaled(A, s)) if lu is None else lu, rows=_rows(A),
+        self._base = dict(data=A.data.copy(), s=s, lu=lu, rows=_rows(A),
                           col_of=np.full(A.shape[0], -1, dtype=np.int64), WT=np.empty((cap, A.shape[0])),
                           ncols=0, n_pref=0, budget=budget, pref=np.zeros(A.shape[0], dtype=bool), batches=[])
         self.n_setups += 1
@@ -289,7 +312,7 @@ class PressureSolver:
         factorisation is the price of the choice).
         """
         t0 = time.perf_counter()
-        lu = _lu(_scaled(A, 1.0 / np.sqrt(A.diagonal())))
+        lu = _lu(_scaled(A, 1.0 / np.sqrt(self._diagonal(A))))
         self.fill = float(lu.L.nnz + lu.U.nnz) / A.shape[0]
         if self.fill <= _SPLIT_FILL:
             self.method = "lowrank"
@@ -315,7 +338,7 @@ class PressureSolver:
                 fresh = fresh or status == "rank"
                 continue
             x, upd, n_changed = got
-            sc = 1.0 / np.sqrt(A.diagonal())
+            sc = 1.0 / np.sqrt(self._diagonal(A))
             bn = float(np.linalg.norm(b * sc))
             if bn == 0.0:
                 return np.zeros_like(b)
@@ -463,6 +486,16 @@ def _solve_columns(base, nodes):
     base["col_of"][nodes] = np.arange(k, k + nodes.size)
     base["ncols"] = k + nodes.size
     base["batches"].append(nodes.copy())
+
+
+#: Prefetching base columns (cost only) is kept where the first factor has at least this many
+#: entries of L + U per unknown. Batched columns pay off only with dense supernodes: 8 single
+#: base solves over one batch of 8, measured 2026-12-02 (thread time): 10k lattice (fill 232)
+#: 1.8-2.2, 30k lattice (436) 1.7-2.1, 400^3 Berea network (21) 1.2-1.5, 2x2x2-tiled Berea (57)
+#: 1.2-1.3; on the tiled Berea at Ca 1e-6 prefetching cost more than it saved (60 CPU s: 347
+#: fills with it, 400 without). A rule on the fill, not a timing, so that every run of the same
+#: input computes the same column batches (round-off included).
+_PREFETCH_FILL = 100.0
 
 
 #: Batches of base columns at least this large are solved on two threads.

@@ -327,3 +327,104 @@ def _ball(seeds, indptr, nbr, allowed, hops):
                 queue[tail] = w
                 tail += 1
     return depth >= 0
+
+
+@jit
+def _edge_states(ends, inner, cond_n, cond_w, state):
+    """Edge conductances, active-meniscus mask and non-wetting-end mask of a configuration.
+
+    ``ends = (a, b, n)``; ``state = (full, trapped, inv, closed)`` (pores: full, trapped; edges:
+    invaded, closed). Node ``n`` (inlet) counts as full, ``n + 1`` (outlet) as not. Returns
+    ``(cond, men, fa)``, shapes (E,): non-wetting conduits and active menisci carry ``cond_n``,
+    wetting conduits ``cond_w``, pinned menisci and edges touching a trapped pore 0.
+    """
+    a, b, n = ends
+    full, trapped, inv, closed = state
+    m = a.shape[0]
+    cond = np.zeros(m)
+    men = np.zeros(m, dtype=np.bool_)
+    fa = np.zeros(m, dtype=np.bool_)
+    for e in range(m):
+        ae, be = a[e], b[e]
+        fae = ae == n or (ae < n and full[ae])
+        fbe = be == n or (be < n and full[be])
+        fa[e] = fae
+        if (ae < n and trapped[ae]) or (be < n and trapped[be]):
+            continue
+        if inner[e]:
+            if fae != fbe:
+                if inv[e] and not closed[e]:
+                    men[e] = True
+                    cond[e] = cond_n[e]
+            elif fae:
+                cond[e] = cond_n[e]
+            else:
+                cond[e] = cond_w[e]
+        elif fae:
+            cond[e] = cond_n[e]
+        else:
+            cond[e] = cond_w[e]
+    return cond, men, fa
+
+
+@jit
+def _assemble(ends, edge, cond, pcb, pos, diag_ref, bc):
+    """Values of the pressure matrix (fixed CSR pattern) and the right-hand side of a configuration.
+
+    ``ends = (a, b, n)``, ``edge = (inner, is_in_edge, men, fa)``, ``pos = (pos_diag, pos_ab,
+    pos_ba, nnz)``, ``bc = (rate, p_fixed, constant_rate)``. The sums run in the order of
+    :meth:`porefsi.flow._drainage_engine.Engine.assemble`'s NumPy twin (bincount, ``add.at``),
+    so the values are the same to the bit. Returns ``(data (nnz,), rhs (n + 1,), x)`` with ``x``
+    the filling pore of each active meniscus in edge order.
+    """
+    a, b, n = ends
+    inner, is_in, men, fa = edge
+    pos_diag, pos_ab, pos_ba, nnz = pos
+    rate, p_fixed, const_rate = bc
+    m = a.shape[0]
+    da = np.zeros(n + 2)
+    db = np.zeros(n + 2)
+    for e in range(m):
+        da[a[e]] += cond[e]
+    for e in range(m):
+        db[b[e]] += cond[e]
+    diag = da[:n + 1] + db[:n + 1]
+    rhs = np.zeros(n + 1)
+    data = np.zeros(nnz)
+    if const_rate:
+        rhs[n] = rate
+    else:
+        for e in range(m):
+            if is_in[e]:
+                rhs[b[e]] += cond[e] * p_fixed
+        diag[n] = 1.0
+        rhs[n] = p_fixed
+    k = 0
+    for e in range(m):
+        if men[e]:
+            k += 1
+    us = np.empty(k, dtype=np.int64)
+    xs = np.empty(k, dtype=np.int64)
+    src = np.empty(k)
+    k = 0
+    for e in range(m):
+        if men[e]:
+            us[k] = a[e] if fa[e] else b[e]
+            xs[k] = b[e] if fa[e] else a[e]
+            src[k] = cond[e] * pcb[xs[k]]
+            k += 1
+    for i in range(k):
+        rhs[us[i]] += src[i]
+    for i in range(k):
+        rhs[xs[i]] += -src[i]
+    for i in range(n + 1):
+        if diag[i] <= 0.0:
+            diag[i] = diag_ref[i]
+            rhs[i] = 0.0
+        data[pos_diag[i]] = diag[i]
+    for e in range(m):
+        if inner[e]:
+            off = 0.0 if (is_in[e] and not const_rate) else -cond[e]
+            data[pos_ab[e]] = off
+            data[pos_ba[e]] = off
+    return data, rhs, xs

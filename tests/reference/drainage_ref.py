@@ -110,3 +110,49 @@ def ball(seeds, indptr, nbr, allowed, hops):
     out = np.zeros(n, dtype=bool)
     out[list(seen)] = True
     return out
+
+
+def edge_states(g, full, trapped, inv, closed):
+    """Twin of ``_kernels._edge_states`` (vectorised NumPy on the graph ``g``): (cond, men, fa)."""
+    fx = np.concatenate([full, [True, False]])
+    tx = np.concatenate([trapped, [False, False]])
+    fa, fb = fx[g.a], fx[g.b]
+    out_e = ~g.inner
+    nw = (fa & fb) | (out_e & fa)
+    men = (fa ^ fb) & inv & ~closed & ~out_e
+    w = ~fa & ~fb
+    tr = tx[g.a] | tx[g.b]
+    men &= ~tr
+    cond = np.where(nw | men, g.gn, np.where(w, g.gw, 0.0))
+    cond[tr] = 0.0
+    return cond, men, fa
+
+
+def assemble(g, cond, men, fa, rate, p_fixed, diag_ref):
+    """Twin of ``_kernels._assemble`` (bincount / ``add.at``): (matrix values, rhs, filling pores)."""
+    n = g.n
+    diag = (np.bincount(g.a, cond, minlength=n + 2) + np.bincount(g.b, cond, minlength=n + 2))[:n + 1]
+    rhs = np.zeros(n + 1)
+    off = np.where(g.inner, -cond, 0.0)
+    if rate is not None:
+        rhs[n] = rate
+    else:
+        ie = g.is_in_edge
+        np.add.at(rhs, g.b[ie], cond[ie] * p_fixed)
+        off[ie] = 0.0
+        diag[n] = 1.0
+        rhs[n] = p_fixed
+    em = np.flatnonzero(men)
+    u = np.where(fa[em], g.a[em], g.b[em])
+    x = np.where(fa[em], g.b[em], g.a[em])
+    src = cond[em] * g.pcb[x]
+    np.add.at(rhs, u, src)
+    np.add.at(rhs, x, -src)
+    zero = diag <= 0
+    diag[zero] = diag_ref[zero]
+    rhs[zero] = 0.0
+    data = np.zeros(g.indices.size)
+    data[g.pos_diag] = diag
+    data[g.pos_ab[g.inner]] = off[g.inner]
+    data[g.pos_ba[g.inner]] = off[g.inner]
+    return data, rhs, x
