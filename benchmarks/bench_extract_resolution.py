@@ -30,11 +30,21 @@ a Gaussian-blob medium and a sphere pack (the seeded generators of
 ``bench_network_accuracy.py``); ``--rocks blob-scales``: 240^3 blob media whose pores are 1x, 2x,
 3x wider in voxels (the generator's sigma), porefsi only: the radius effect at one image size.
 
+``--decompose`` (porefsi only, in this process): separates what carries the change of k between
+the native and the upsampled network, by running the extraction's stages of one grid on the
+other grid's partition (stage functions of ``porefsi.network.extract`` swapped for the run, a
+diagnosis, not an API): k of the native partition (regions and centres) measured on the
+upsampled image ("measure"), of the native pore centres flooded and measured on the upsampled
+image ("flood"), of the upsampled image's own network ("own"), and of the upsampled partition
+coarsened to the native grid (the most frequent label of each ``f^3`` block) measured on the native
+image ("coarse"); each / the native network's k.
+
 Usage::
 
     python benchmarks/bench_extract_resolution.py                       # every rock, 1x 2x 3x, all tools
     python benchmarks/bench_extract_resolution.py --rocks sample --tools porefsi
     python benchmarks/bench_extract_resolution.py --factors 1 3 --json out.json
+    python benchmarks/bench_extract_resolution.py --rocks sample berea --decompose
 
 Peers as in ``bench_extract.py`` (``--peers-python``; a missing peer is skipped with the reason).
 Timings on a shared machine are noisy: the load average is printed before and after.
@@ -43,6 +53,7 @@ Timings on a shared machine are noisy: the load average is printed before and af
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -174,6 +185,98 @@ def rocks(names, data: Path, crop: int):
             )
 
 
+@contextlib.contextmanager
+def _stages(centres=None, labels=None):
+    """Extraction stages swapped: given pore centres (flat indices) and, optionally, given regions.
+
+    ``centres`` replaces the maximal balls and their hierarchy; with ``labels`` (int32, -1 off the
+    pores) the flood too, and no pores merge (the partition is taken as it is).
+    """
+    import porefsi.network.extract as ex
+
+    saved = ex._pore_centres, ex._flood_regions, ex.merge_shallow
+    lab0 = labels
+
+    def pore_centres(dt2, *_):
+        lab = np.full(dt2.shape, -1, np.int32) if lab0 is None else lab0.copy()
+        return centres, lab, {"candidates": 0, "balls": 0, "scanned": 0}
+
+    ex._pore_centres = pore_centres
+    if labels is not None:
+        ex._flood_regions = lambda *_: 0
+    ex.merge_shallow = lambda centre, r, *_: (np.arange(r.size), np.arange(r.size))
+    try:
+        yield
+    finally:
+        ex._pore_centres, ex._flood_regions, ex.merge_shallow = saved
+
+
+def _fine_centres(dt2_native_centres: np.ndarray, fine_pore: np.ndarray, f: int) -> np.ndarray:
+    """Flat indices on the fine grid of the widest fine voxel in each native centre's ``f^3`` block."""
+    from scipy import ndimage
+
+    dt = ndimage.distance_transform_edt(fine_pore)
+    out = np.empty(len(dt2_native_centres), np.int64)
+    for i, c in enumerate(dt2_native_centres):
+        blk = dt[c[0] * f : (c[0] + 1) * f, c[1] * f : (c[1] + 1) * f, c[2] * f : (c[2] + 1) * f]
+        o = np.unravel_index(int(np.argmax(blk)), blk.shape)
+        out[i] = np.ravel_multi_index(tuple(c * f + np.array(o)), fine_pore.shape)
+    return out
+
+
+def decompose(pore: np.ndarray, vs: float, f: int) -> dict:
+    """k (mean of x, y, z, mD) of the native network and of the cross-grid networks (module docstring)."""
+    from porefsi.image.voxel_image import VoxelImage
+    from porefsi.network.extract import extract_network
+
+    def k(net):
+        from porefsi.flow.permeability import absolute_permeability
+
+        return float(np.mean([absolute_permeability(net, a).k_mD for a in "xyz"]))
+
+    e1 = extract_network(VoxelImage(pore, vs))
+    n1 = e1.network
+    fine = upsample(pore, f)
+    ef = extract_network(VoxelImage(fine, vs / f))
+    c1 = np.round((n1.pore_coords - n1.origin) / vs - 0.5).astype(int)
+    cf = _fine_centres(c1, fine.astype(bool), f)
+    out = {"native": k(n1), "own": k(ef.network), "pores": (n1.n_pores, ef.network.n_pores)}
+    with _stages(cf, upsample(e1.labels.astype(np.int32), f)):
+        out["measure"] = k(extract_network(VoxelImage(fine, vs / f)).network)
+    with _stages(cf):
+        out["flood"] = k(extract_network(VoxelImage(fine, vs / f)).network)
+    n = pore.shape
+    blocks = ef.labels.astype(np.int64).reshape(n[0], f, n[1], f, n[2], f).transpose(0, 2, 4, 1, 3, 5)
+    blocks = blocks.reshape(-1, f**3)
+    lab = blocks[:, 0].astype(np.int32)  # uniform blocks; the mixed ones take their most frequent label
+    for i in np.flatnonzero((blocks != blocks[:, :1]).any(axis=1)):
+        b = blocks[i][blocks[i] >= 0]
+        lab[i] = np.bincount(b).argmax() if b.size else -1
+    lab = np.where(pore.reshape(-1) > 0, lab, -1).reshape(n)
+    nf = ef.network
+    cc = np.floor((nf.pore_coords - nf.origin) / nf.voxel_size - 0.5 + 1e-9).astype(int) // f
+    with _stages(np.ravel_multi_index(tuple(cc.T), n), lab):
+        out["coarse"] = k(extract_network(VoxelImage(pore, vs)).network)
+    return out
+
+
+def _decompose_rows(args) -> list:
+    rows = []
+    for rock, pore, vs in rocks(args.rocks, args.data, args.crop):
+        if "native" in rock:
+            continue
+        for f in sorted(set(args.factors) - {1}):
+            r = decompose(pore, vs, f)
+            k1 = r["native"]
+            print(
+                f"{rock:32s} {f}x native {k1:7.0f} mD | /native: measure {r['measure'] / k1:.3f} flood "
+                f"{r['flood'] / k1:.3f} own {r['own'] / k1:.3f} coarse {r['coarse'] / k1:.3f} | pores {r['pores']}",
+                flush=True,
+            )
+            rows.append(dict(rock=rock, factor=f, **r))
+    return rows
+
+
 def _row(rock, f, tool, r, native):
     n = r.get("n_vox")
     us = r["cpu"] / n * 1e6
@@ -251,7 +354,14 @@ def main(argv=None) -> dict:
     )
     p.add_argument("--peers-python", default=None)
     p.add_argument("--json", default=None, help="also write every result to this file")
+    p.add_argument("--decompose", action="store_true", help="cross-grid decomposition of k only (module docstring)")
     args = p.parse_args(argv)
+    if args.decompose:
+        print(f"load average before: {open('/proc/loadavg').read().split()[:3]}")
+        rows = _decompose_rows(args)
+        if args.json:
+            Path(args.json).write_text(json.dumps(rows, indent=1))
+        return {"results": rows}
     if args.peers_python is None:
         args.peers_python, args.peers_reason = be.default_peers_python()
     else:
