@@ -175,3 +175,65 @@ def test_auto_factorises_a_reused_matrix_and_keeps_amg_for_changing_ones(rock_mo
     s(b)
     s(b)
     assert capped.n_factorizations == 0
+
+
+def test_recycled_amg_solves_match_the_direct_solve_and_skip_known_loads(rock_model, rng):
+    """AMG-CG keeps earlier solutions of one matrix (SolutionSpace) and starts each solve from the
+    A-orthogonal projection of the new right-hand side onto them. Every answer agrees with the sparse
+    LU to the CG tolerance; a load that combines earlier ones is answered by the projection alone
+    (0 CG iterations); a partly new load needs fewer iterations than from zero; a new matrix starts
+    with an empty space. Measured on this rock (coarsen 8): 0 iterations for a
+    combination, 9 for a combination plus a 1e-3 new part (13 from zero; to rtol 1e-10, 9,783 dofs)."""
+    m = rock_model
+    K = m.tangent(np.zeros(m.n_dofs), 1.0)
+    lu = direct_solver_factory()(K)
+    fac = AMGSolverFactory(m.dof_points, m.free, rtol=1e-10)
+    solve = fac(K)
+    b1, b2, b3 = rng.standard_normal((3, m.n_dofs))
+
+    def check(b):
+        x, xd = solve(b), lu(b)
+        np.testing.assert_allclose(x, xd, rtol=0, atol=1e-7 * np.abs(xd).max())
+        return fac.last.iterations
+
+    cold = check(b1)
+    assert cold >= 8
+    check(b2)
+    assert check(2.0 * b1 - 0.5 * b2) == 0
+    partly = check(b1 + b2 + 1e-3 * np.linalg.norm(b1) / np.linalg.norm(b3) * b3)
+    assert 0 < partly < cold
+    fresh = AMGSolverFactory(m.dof_points, m.free, rtol=1e-10, recycle=0)
+    fresh(K)(2.0 * b1 - 0.5 * b2)
+    assert fresh.last.iterations >= 8
+    K2 = (K + sp.diags(0.3 * K.diagonal())).tocsr()  # another matrix: nothing recycled from K
+    x2 = fac(K2)(2.0 * b1 - 0.5 * b2)
+    assert fac.last.iterations >= 5
+    np.testing.assert_allclose(x2, direct_solver_factory()(K2)(2.0 * b1 - 0.5 * b2), rtol=0,
+                               atol=1e-7 * np.abs(x2).max())
+
+
+def test_solution_space_is_a_orthonormal_and_bounded(rng):
+    """The stored directions stay A-orthonormal (W^T A W = I), a vector already in the span adds
+    nothing, the oldest is dropped beyond the capacity, and the guess for b = A x with x in the span
+    is x itself."""
+    from porefsi.solid.linsolve import SolutionSpace
+
+    n = 40
+    G = rng.standard_normal((n, n))
+    A = sp.csr_matrix(G @ G.T + n * np.eye(n))
+    space = SolutionSpace(A, capacity=3)
+    assert space.guess(np.ones(n)) is None
+    xs = rng.standard_normal((4, n))
+    space.add(xs[0])
+    space.add(xs[1])
+    space.add(2.0 * xs[0] - xs[1])  # in the span: no-op
+    assert len(space.W) == 2
+    W = np.column_stack(space.W)
+    np.testing.assert_allclose(W.T @ (A @ W), np.eye(2), atol=1e-10)
+    np.testing.assert_allclose(space.guess(A @ (xs[0] + 3 * xs[1])), xs[0] + 3 * xs[1], rtol=1e-9)
+    space.add(xs[2])
+    space.add(xs[3])
+    assert len(space.W) == 3
+    W = np.column_stack(space.W)
+    np.testing.assert_allclose(W.T @ (A @ W), np.eye(3), atol=1e-10)
+    np.testing.assert_allclose(np.column_stack(space.AW), A @ W, atol=1e-10)

@@ -18,7 +18,7 @@ import scipy.sparse.linalg as spla
 from porefsi.errors import ConvergenceError, InputError
 
 __all__ = ["pcg", "rigid_body_modes", "AMGSolverFactory", "jacobi_solver_factory", "direct_solver_factory",
-           "AdaptiveSolverFactory", "SolveInfo", "single_thread_blas", "IndefiniteMatrixError"]
+           "AdaptiveSolverFactory", "SolveInfo", "SolutionSpace", "single_thread_blas", "IndefiniteMatrixError"]
 
 #: BLAS threads inside the solves (their dot products are on vectors of 1e4-1e6 entries).
 SOLVE_BLAS_THREADS = 1
@@ -159,6 +159,64 @@ def rigid_body_modes(points: np.ndarray) -> np.ndarray:
     return B.reshape(3 * n, 6)
 
 
+#: Strength-of-connection threshold of the AMG aggregation. Measured on the 120³ Berea crop's graded
+#: mesh (coarsen 2-8, 41,911 dofs; a smooth load, CG to 1e-8): 19 iterations at theta 0 (every
+#: connection strong), 14 at 0.02 and 0.05, 29 at 0.1 (operator complexity 2.08, 2.15, 2.25, 3.55);
+#: docs/solid.md section 8.
+STRENGTH_THETA = 0.02
+#: Previous solutions :class:`AMGSolverFactory` keeps per matrix (:class:`SolutionSpace`).
+RECYCLE_VECTORS = 24
+
+
+class SolutionSpace:
+    r"""The span of earlier solutions of :math:`A x = b`, A-orthonormal: a start for the next solve.
+
+    For a right-hand side ``b`` the guess :math:`x_0 = W W^T b` (columns of ``W`` A-orthonormal) is the
+    A-orthogonal projection of :math:`A^{-1} b` onto the span, so the initial error is A-orthogonal
+    to every stored solution; a ``b`` that combines earlier right-hand sides is solved exactly by it
+    (Fischer 1998, projection of successive right-hand sides). A run's modified Newton solves with
+    one frozen tangent over all exchange steps, and their loads grow in few patterns.
+
+    Parameters
+    ----------
+    A : sparse matrix, shape (n, n)
+        The SPD matrix of every solve.
+    capacity : int
+        Most vectors kept (the oldest is dropped first; 0 keeps none).
+    """
+
+    def __init__(self, A, capacity: int):
+        self.A, self.capacity = A, int(capacity)
+        self.W: list[np.ndarray] = []  # A-orthonormal directions
+        self.AW: list[np.ndarray] = []  # A @ W
+
+    def guess(self, b: np.ndarray) -> np.ndarray | None:
+        """``W W^T b`` (n,), or None while the space is empty."""
+        if not self.W:
+            return None
+        W = np.column_stack(self.W)
+        return W @ (W.T @ np.asarray(b, dtype=float))
+
+    def add(self, x: np.ndarray) -> None:
+        """Add the direction of solution ``x`` (n,), A-orthogonalised twice (no-op if already in the span)."""
+        if self.capacity == 0:
+            return
+        v = np.array(x, dtype=float)
+        xnorm = np.sqrt(abs(v @ (self.A @ v)))
+        for _ in range(2):  # classical Gram-Schmidt, repeated: orthogonal to rounding
+            for w, aw in zip(self.W, self.AW, strict=True):
+                v -= (aw @ v) * w
+        Av = self.A @ v
+        nv2 = float(v @ Av)
+        if not nv2 > (1e-10 * xnorm) ** 2:  # nothing new (or not SPD along v)
+            return
+        nv = np.sqrt(nv2)
+        self.W.append(v / nv)
+        self.AW.append(Av / nv)
+        if len(self.W) > self.capacity:
+            del self.W[0], self.AW[0]
+
+
 class AMGSolverFactory:
     """CG preconditioned by pyamg smoothed aggregation with rigid-body modes, with reuse.
 
@@ -186,11 +244,18 @@ class AMGSolverFactory:
         Near-null space = the six rigid-body modes (True) or the three translations only (False,
         for comparison: on a slender cantilever CG needs ~10x more iterations without the
         rotations, on the porous rock ~25 % more; see tests/test_solid_linsolve.py).
+    theta : float, default :data:`STRENGTH_THETA`
+        Strength-of-connection threshold of the aggregation (pyamg's symmetric measure).
+    recycle : int, default :data:`RECYCLE_VECTORS`
+        Previous solutions kept per matrix (0: none). A solve with a matrix that served earlier
+        solves starts from the A-orthogonal projection of its right-hand side onto their span
+        (:class:`SolutionSpace`), so a load that repeats or combines earlier ones costs few or no
+        CG iterations; the stopping test is unchanged (the residual is recomputed from the start).
     """
 
     def __init__(self, dof_points: np.ndarray, free: np.ndarray, *, rtol: float = 1e-8,
                  rebuild_iterations: int = 40, maxiter: int = 1000, max_coarse: int = 300,
-                 rotations: bool = True):
+                 rotations: bool = True, theta: float | None = None, recycle: int | None = None):
         self.n_full = 3 * len(dof_points)
         self.free = np.asarray(free, dtype=np.int64)
         self.B_full = rigid_body_modes(dof_points)
@@ -198,6 +263,10 @@ class AMGSolverFactory:
             self.B_full = np.ascontiguousarray(self.B_full[:, :3])
         self.rtol, self.rebuild_iterations, self.maxiter = float(rtol), int(rebuild_iterations), int(maxiter)
         self.max_coarse = int(max_coarse)
+        self.theta = STRENGTH_THETA if theta is None else float(theta)
+        self.recycle = RECYCLE_VECTORS if recycle is None else int(recycle)
+        if not (0.0 <= self.theta < 1.0) or self.recycle < 0:
+            raise InputError(f"theta must be in [0, 1) and recycle >= 0, got {theta!r}, {recycle!r}")
         self.ml = None
         self.n_setups = 0
         self.last = SolveInfo()
@@ -245,7 +314,7 @@ class AMGSolverFactory:
         cons = np.setdiff1d(np.arange(self.n_full), self.free)
         B[cons] = 0.0  # constrained dofs carry no near-null-space component
         self.ml = pyamg.smoothed_aggregation_solver(
-            Ab, B=B, symmetry="symmetric", strength=("symmetric", {"theta": 0.0}),
+            Ab, B=B, symmetry="symmetric", strength=("symmetric", {"theta": self.theta}),
             smooth=("jacobi", {"omega": 4.0 / 3.0}), max_coarse=self.max_coarse, coarse_solver="splu",
             # forward sweep down, backward sweep up: a symmetric V-cycle at half the cost of
             # symmetric sweeps on both legs (CG needs a symmetric preconditioner)
@@ -267,6 +336,7 @@ class AMGSolverFactory:
         if A.shape != (len(self.free), len(self.free)):
             raise InputError(f"matrix shape {A.shape} does not match {len(self.free)} free dofs")
         state = {"fresh": self.ml is None}
+        space = SolutionSpace(A, self.recycle)
         if self.ml is None:
             self.setup(A)
 
@@ -274,8 +344,9 @@ class AMGSolverFactory:
             # a reused hierarchy gets at most rebuild_iterations before it is replaced
             cap = self.maxiter if state["fresh"] else self.rebuild_iterations
             tol = self.rtol if rtol is None else float(rtol)
+            x0 = space.guess(b)
             try:
-                x, info = pcg(A, b, self.precondition, rtol=tol, maxiter=cap, what="AMG-CG")
+                x, info = pcg(A, b, self.precondition, x0=x0, rtol=tol, maxiter=cap, what="AMG-CG")
                 ok = True
             except IndefiniteMatrixError:
                 raise  # a property of A: no hierarchy can help
@@ -286,8 +357,9 @@ class AMGSolverFactory:
             if not ok:  # stale hierarchy: rebuild for this matrix and solve again
                 self.setup(A)
                 state["fresh"] = True
-                x, info = pcg(A, b, self.precondition, rtol=tol, maxiter=self.maxiter, what="AMG-CG")
+                x, info = pcg(A, b, self.precondition, x0=x0, rtol=tol, maxiter=self.maxiter, what="AMG-CG")
             self.last = info
+            space.add(x)
             return x
 
         return solve
