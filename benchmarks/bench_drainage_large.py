@@ -111,7 +111,8 @@ def main(argv=None):
                ip_breakthrough_time=float(net.pore_volume[b].sum() / rate), load=_load())
     c = res.counters
     print(f"{args.net}: cpu {cpu:.1f} s, wall {wall:.1f} s, {c['n_fills']} fills ({c['n_certified_fills']} "
-          f"certified), {res.counters['n_solves']} solves, breakthrough t = {res.breakthrough_time:.5g} s Sw = "
+          f"certified), {c['n_solves']} solves ({c['n_solves'] / max(c['n_fills'], 1):.2f} per fill), "
+          f"{c['n_solver_setups']} factorisations, breakthrough t = {res.breakthrough_time:.5g} s Sw = "
           f"{res.breakthrough_sw:.4f}; invasion percolation: t_bt = {rec['ip_breakthrough_time']:.5g} s, Spearman "
           f"{rec['spearman_vs_ip']:.4f}, only DPN / IP {rec['only_dpn']} / {rec['only_ip']}; load {_load()}",
           flush=True)

@@ -152,8 +152,11 @@ def simulator_from_state(prefix: str, arrays: dict, meta: dict):
         setattr(e, k, v)
     e.rows = [tuple(r) for r in rows.tolist()]
     s = e.solver
-    for k, v in plain.get_fields(f"{prefix}.solver", arrays, meta).items():
+    fields = plain.get_fields(f"{prefix}.solver", arrays, meta)
+    for k, v in fields.items():
         setattr(s, k, v)
+    if "prefetch_fill" not in fields:  # written before the fill rule: prefetch and rank cap as they were
+        s.prefetch_fill = -1.0
     s._base = None
     if f"{prefix}.base" in meta:
         b = plain.get_fields(f"{prefix}.base", arrays, meta)
