@@ -52,6 +52,11 @@ RUNS = {
     "uniform6": {"coarsen": 6},
     "graded_3_12": dict(RECIPE),
     "graded_3_12_lig1": {**RECIPE, "ligaments": 1.0},
+    # the same meshes with AMG-CG instead of the sparse LU (the recipe since 2026-12-02 14:40), and
+    # uniform 6 with AMG-CG too: whether a gain is the mesh's or the solver's
+    "graded_3_12_amg": {**RECIPE, "linear_solver": "amg"},
+    "graded_3_12_lig1_amg": {**RECIPE, "ligaments": 1.0, "linear_solver": "amg"},
+    "uniform6_amg": {"coarsen": 6, "linear_solver": "amg"},
 }
 
 
