@@ -115,6 +115,27 @@ def test_numba_kernel_matches_twin_and_skfem(mat, rng):
 
 
 @pytest.mark.parametrize("mat", MATERIALS, ids=IDS)
+def test_zero_displacement_force_shortcut_is_exact(mat, rng):
+    """The fast path skips the assembly of f_int at zero displacement (a quasi-static step's load
+    scale evaluates it every step): the reference state of every material is stress-free, so the
+    shortcut's zeros equal the kernel's f_int (computed along with K) and the twin's exactly; a
+    displacement with a single nonzero entry still assembles."""
+    m = _distorted_box(rng, shape=(2, 2, 3))
+    asm = P1Assembler(m, mat)
+    zero = np.zeros((m.n_nodes, 3))
+    f_short, K_none = asm.assemble(zero, want_K=False)
+    f_kernel, _ = asm.assemble(zero, want_K=True)
+    assert K_none is None and not f_short.any() and not f_kernel.any()
+    assert not assemble_p1_ref(m.points, m.tets, zero, mat)[0].any()
+    one = zero.copy()
+    one[5, 1] = 1e-9
+    f1, _ = asm.assemble(one, want_K=False)
+    np.testing.assert_allclose(f1, assemble_p1_ref(m.points, m.tets, one, mat)[0], rtol=0,
+                               atol=1e-10 * np.abs(f1).max())
+    assert np.abs(f1).max() > 0
+
+
+@pytest.mark.parametrize("mat", MATERIALS, ids=IDS)
 @pytest.mark.parametrize("order", [1, 2])
 def test_internal_force_keeps_precision_at_pore_pressure_strains(mat, order, rng):
     """At strains of 1e-11 the internal force is the linear-elastic K(0) u up to O(strain):

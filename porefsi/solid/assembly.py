@@ -112,6 +112,8 @@ class P1Assembler:
         if u.shape != (self.mesh.n_nodes, 3):
             raise InputError(f"u_nodes must have shape ({self.mesh.n_nodes}, 3), got {u.shape}")
         fint = np.zeros(self.n_dofs)
+        if not want_K and not u.any():  # the reference state is stress-free (every Material): f_int = 0
+            return fint, None
         data = np.zeros(self.nnz if want_K else 0)
         m = self.material
         n_bad = _kernels._assemble_p1((self.tets, self.dN, self.vol), u, (int(m.kind), float(m.lam), float(m.mu)),

@@ -164,8 +164,14 @@ def rigid_body_modes(points: np.ndarray) -> np.ndarray:
 #: connection strong), 14 at 0.02 and 0.05, 29 at 0.1 (operator complexity 2.08, 2.15, 2.25, 3.55);
 #: docs/solid.md section 8.
 STRENGTH_THETA = 0.02
-#: Previous solutions :class:`AMGSolverFactory` keeps per matrix (:class:`SolutionSpace`).
-RECYCLE_VECTORS = 24
+#: Previous solutions :class:`AMGSolverFactory` keeps per matrix by default (:class:`SolutionSpace`).
+#: 0 (off): a run restored from a checkpoint starts with an empty space, so with recycling its AMG
+#: solves would agree with the uninterrupted run's only to the CG tolerance, not bit for bit
+#: (tests/test_solver_footprint.py). Measured with 24 on the graded 3_12 meshes with ligaments (the
+#: static coupled run of the speed-accuracy study, 10 steps, 16 solves with one tangent): 84 instead
+#: of 103 CG iterations on the 120³ Berea crop (35,779 dofs), 75 instead of 90 on the sample
+#: (31,438); docs/solid.md section 5.
+RECYCLE_VECTORS = 0
 
 
 class SolutionSpace:
