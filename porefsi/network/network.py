@@ -282,7 +282,13 @@ class Network:
         return self.throat_shape_factor is not None
 
     def with_conductance(self, model: str | None) -> Network:
-        """Copy using conduit ``model`` (``None``: the default for its data); validated."""
+        """Copy using conduit ``model`` (``None``: the default for its data); validated.
+
+        Only the conduit law changes; the geometry stays as it was measured. The two models
+        measure throats differently at the image box (the default walls its faces, the paper's
+        leaves it open), so to reproduce the paper's network extract with
+        ``extract_network(image, conductance="paper")`` rather than relabelling a default one.
+        """
         return self.replace(conductance=model)
 
     # -- sizes ---------------------------------------------------------------------------
