@@ -162,7 +162,7 @@ def rigid_body_modes(points: np.ndarray) -> np.ndarray:
 #: Strength-of-connection threshold of the AMG aggregation. Measured on the 120³ Berea crop's graded
 #: mesh (coarsen 2-8, 41,911 dofs; a smooth load, CG to 1e-8): 19 iterations at theta 0 (every
 #: connection strong), 14 at 0.02 and 0.05, 29 at 0.1 (operator complexity 2.08, 2.15, 2.25, 3.55);
-#: docs/solid.md section 8.
+#: docs/solid.md section 5.
 STRENGTH_THETA = 0.02
 #: Previous solutions :class:`AMGSolverFactory` keeps per matrix by default (:class:`SolutionSpace`).
 #: 0 (off): a run restored from a checkpoint starts with an empty space, so with recycling its AMG
