@@ -54,7 +54,8 @@ RUNS = {
     "uniform6": {"coarsen": 6},
     "graded_3_12": dict(RECIPE),
     "graded_3_12_lig1": {**RECIPE, "ligaments": 1.0},
-    # the same meshes with AMG-CG instead of the sparse LU (the recipe since 2026-12-02 14:40), and
+    # the same meshes with AMG-CG instead of the sparse LU (measured 2026-12-02: better on the Berea crop, worse
+    # on the sample, so the recipe keeps the default solver; docs/stability.md (e) 4d), and
     # uniform 6 with AMG-CG too: whether a gain is the mesh's or the solver's
     "graded_3_12_amg": {**RECIPE, "linear_solver": "amg"},
     "graded_3_12_lig1_amg": {**RECIPE, "ligaments": 1.0, "linear_solver": "amg"},

@@ -240,3 +240,21 @@ def test_solution_space_is_a_orthonormal_and_bounded(rng):
     W = np.column_stack(space.W)
     np.testing.assert_allclose(W.T @ (A @ W), np.eye(3), atol=1e-10)
     np.testing.assert_allclose(np.column_stack(space.AW), A @ W, atol=1e-10)
+
+
+def test_model_recycle_reaches_its_amg_solves(rock_model, rng):
+    """``SolidModel.recycle`` (default 0) is handed to the AMG factory; each solve exposes its space
+    (what a checkpoint would need), and with recycling a repeated load costs no CG iteration."""
+    import copy
+
+    m = copy.copy(rock_model)
+    assert m.recycle == 0
+    m.recycle, m._solver_factory = 6, None
+    K = m.tangent(np.zeros(m.n_dofs), 1.0)
+    solve = m.solver_factory(K)
+    assert m.solver_factory.recycle == 6 and solve.space.capacity == 6
+    b = rng.standard_normal(m.n_dofs)
+    x = solve(b)
+    assert len(solve.space.W) == 1
+    np.testing.assert_allclose(solve(3.0 * b), 3.0 * x, rtol=0, atol=1e-7 * np.abs(x).max())
+    assert m.solver_factory.last.iterations == 0

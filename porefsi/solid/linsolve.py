@@ -162,7 +162,7 @@ def rigid_body_modes(points: np.ndarray) -> np.ndarray:
 #: Strength-of-connection threshold of the AMG aggregation. Measured on the 120³ Berea crop's graded
 #: mesh (coarsen 2-8, 41,911 dofs; a smooth load, CG to 1e-8): 19 iterations at theta 0 (every
 #: connection strong), 14 at 0.02 and 0.05, 29 at 0.1 (operator complexity 2.08, 2.15, 2.25, 3.55);
-#: docs/solid.md section 8.
+#: docs/solid.md section 5.
 STRENGTH_THETA = 0.02
 #: Previous solutions :class:`AMGSolverFactory` keeps per matrix by default (:class:`SolutionSpace`).
 #: 0 (off): a run restored from a checkpoint starts with an empty space, so with recycling its AMG
@@ -250,18 +250,22 @@ class AMGSolverFactory:
         Near-null space = the six rigid-body modes (True) or the three translations only (False,
         for comparison: on a slender cantilever CG needs ~10x more iterations without the
         rotations, on the porous rock ~25 % more; see tests/test_solid_linsolve.py).
-    theta : float, default :data:`STRENGTH_THETA`
-        Strength-of-connection threshold of the aggregation (pyamg's symmetric measure).
     recycle : int, default :data:`RECYCLE_VECTORS`
         Previous solutions kept per matrix (0: none). A solve with a matrix that served earlier
         solves starts from the A-orthogonal projection of its right-hand side onto their span
         (:class:`SolutionSpace`), so a load that repeats or combines earlier ones costs few or no
         CG iterations; the stopping test is unchanged (the residual is recomputed from the start).
+
+    Attributes
+    ----------
+    theta : float
+        Strength-of-connection threshold of the aggregation (pyamg's symmetric measure), read at
+        each hierarchy build; :data:`STRENGTH_THETA` unless changed.
     """
 
     def __init__(self, dof_points: np.ndarray, free: np.ndarray, *, rtol: float = 1e-8,
                  rebuild_iterations: int = 40, maxiter: int = 1000, max_coarse: int = 300,
-                 rotations: bool = True, theta: float | None = None, recycle: int | None = None):
+                 rotations: bool = True, recycle: int | None = None):
         self.n_full = 3 * len(dof_points)
         self.free = np.asarray(free, dtype=np.int64)
         self.B_full = rigid_body_modes(dof_points)
@@ -269,10 +273,10 @@ class AMGSolverFactory:
             self.B_full = np.ascontiguousarray(self.B_full[:, :3])
         self.rtol, self.rebuild_iterations, self.maxiter = float(rtol), int(rebuild_iterations), int(maxiter)
         self.max_coarse = int(max_coarse)
-        self.theta = STRENGTH_THETA if theta is None else float(theta)
+        self.theta = STRENGTH_THETA
         self.recycle = RECYCLE_VECTORS if recycle is None else int(recycle)
-        if not (0.0 <= self.theta < 1.0) or self.recycle < 0:
-            raise InputError(f"theta must be in [0, 1) and recycle >= 0, got {theta!r}, {recycle!r}")
+        if self.recycle < 0:
+            raise InputError(f"recycle must be >= 0 (solutions kept per matrix), got {recycle!r}")
         self.ml = None
         self.n_setups = 0
         self.last = SolveInfo()
@@ -368,6 +372,7 @@ class AMGSolverFactory:
             space.add(x)
             return x
 
+        solve.space = space  # what a checkpoint would have to carry for a bit-for-bit resume
         return solve
 
     def __repr__(self) -> str:

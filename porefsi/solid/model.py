@@ -61,6 +61,14 @@ class SolidModel:
         always, "direct" a sparse LU per matrix, "jacobi" Jacobi-CG (cheapest for strongly
         mass-dominated M + c K, omega dt ~ 10).
 
+    Attributes
+    ----------
+    recycle : int
+        Earlier solutions each AMG-CG matrix keeps to start later solves from
+        (:class:`~porefsi.solid.linsolve.SolutionSpace`; default 0: none); set it before the first
+        solve. Not part of a checkpoint: with it a resumed run agrees with the uninterrupted one to
+        the CG tolerance, not bit for bit.
+
     Notes
     -----
     :meth:`with_nodal_forces` returns a new model sharing every assembled structure, so a
@@ -77,6 +85,7 @@ class SolidModel:
         if linear_solver not in ("auto", "amg", "jacobi", "direct"):
             raise InputError(f"linear_solver must be 'auto', 'amg', 'jacobi' or 'direct', got {linear_solver!r}")
         self.linear_solver = linear_solver
+        self.recycle = 0
         if backend not in ("auto", "numba", "skfem"):
             raise InputError(f"backend must be 'auto', 'numba' or 'skfem', got {backend!r}")
         if order == 2 and backend == "numba":
@@ -261,7 +270,7 @@ class SolidModel:
     def solver_factory(self) -> AMGSolverFactory:
         """The shared AMG factory (created on first use)."""
         if self._solver_factory is None:
-            self._solver_factory = AMGSolverFactory(self.dof_points, self.free)
+            self._solver_factory = AMGSolverFactory(self.dof_points, self.free, recycle=self.recycle)
         return self._solver_factory
 
     def reactions(self, u: np.ndarray, t: float) -> dict[str, np.ndarray]:
