@@ -63,6 +63,7 @@ class Engine:
         self._pred = None
         self._nbr_res = 1.0 / g.gw[g.nbr_edge]
         self._diag_ref = self._wetting_diagonal()
+        self._indptr = g.pattern_indptr.astype(g.indices.dtype)  # the pattern with one index dtype (no copies)
         self._ptol = 1e-10 * float(np.max(g.pcb))
         self.rows: list[tuple] = []
 
