@@ -173,22 +173,18 @@ def _walled_points(labels, dt2, conns, n_pores, walls):
 
 
 @jit
-def _ridge_radius(dt2, rad_tab, a, b, c, u, box, at=None):
+def _ridge_radius(dt2, rad_tab, a, b, c, u, box):
     """Channel radius at voxel (a, b, c) on a line of unit direction u: the sub-voxel ridge estimate.
 
     ``f + max_b |g_perp,b|`` (capped at 1/2) with ``f`` the voxel's radius and ``g_perp`` the
     central-difference gradient of the radius with its component along u removed: the estimator
     of :func:`_subvoxel_peaks` applied across the channel, so a sample beside the channel's axis
     reads the axis's radius, as the throat radius does at the throat. ``box``: the walled axes
-    (:func:`_d2`). ``at`` (optional point): ``f`` is the staircase distance there instead of at
-    the voxel's centre (within ``sqrt(d2) + 1/2`` of it, the box faces of ``box`` included).
+    (:func:`_d2`).
     """
     f = _stair_rad(dt2, a, b, c, box)
     if f == 0.0:
         return 0.0
-    if at is not None:
-        reach = math.sqrt(_d2(dt2, a, b, c, box)) + 0.5
-        f = min(_stair_dist(dt2, at[0], at[1], at[2], reach), _box_gap(dt2.shape, at[0], at[1], at[2], box, -1))
     gx = 0.5 * (_rad_at(dt2, rad_tab, a + 1, b, c, box) - _rad_at(dt2, rad_tab, a - 1, b, c, box))
     gy = 0.5 * (_rad_at(dt2, rad_tab, a, b + 1, c, box) - _rad_at(dt2, rad_tab, a, b - 1, c, box))
     gz = 0.5 * (_rad_at(dt2, rad_tab, a, b, c + 1, box) - _rad_at(dt2, rad_tab, a, b, c - 1, box))
@@ -337,7 +333,30 @@ def _section_radius(dt2, rad_tab, x, u, plane, box, sub=False):
         return _ridge_radius(dt2, rad_tab, ba, bb, bc, u, box)
     h = (x[0] - ba) * u[0] + (x[1] - bb) * u[1] + (x[2] - bc) * u[2]
     q = (ba + h * u[0], bb + h * u[1], bc + h * u[2])
-    return _ridge_radius(dt2, rad_tab, ba, bb, bc, u, box, q)
+    return _plane_peak(dt2, q, plane, box, math.sqrt(best) + 1.0)
+
+
+@jit
+def _plane_peak(dt2, q, plane, box, reach):
+    """Largest staircase distance over a grid in the plane through q spanned by ``plane`` (e1, e2).
+
+    ``(2 n + 1)^2`` points, ``n = 4``, at spacing ``1 / (2 n)`` within half a voxel of q along e1
+    and e2: the throat radius's estimator (:func:`_stair_section_peaks`) in the section's own
+    plane. Each distance is to the nearest solid voxel cube or walled box face (``box``,
+    :func:`_box_gap`), at most ``reach``.
+    """
+    e1, e2 = plane
+    n = 4
+    best = 0.0
+    for s in range(-n, n + 1):
+        for t in range(-n, n + 1):
+            a, b = 0.5 * s / n, 0.5 * t / n
+            x = q[0] + a * e1[0] + b * e2[0]
+            y = q[1] + a * e1[1] + b * e2[1]
+            z = q[2] + a * e1[2] + b * e2[2]
+            d = min(_stair_dist(dt2, x, y, z, reach), _box_gap(dt2.shape, x, y, z, box, -1))
+            best = max(best, d)
+    return best
 
 
 @jit
