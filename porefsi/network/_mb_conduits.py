@@ -9,6 +9,7 @@ import numpy as np
 
 from porefsi.network._mb_sections import (
     _constriction_lengths,
+    _constriction_lengths_subvoxel,
     _sections,
     _stair_section_peaks,
     _subvoxel_peaks,
@@ -27,6 +28,11 @@ MIN_SEGMENT = 0.05
 #: Axes whose two box faces are no-slip walls for the measured geometry ("wall" convention): the
 #: voxel reference's side walls. All three: one network for every flow axis (``docs/extraction.md``).
 BOX_WALLS = (True, True, True)
+
+#: Under the "wall" convention, read each constriction sample at its own position along the
+#: pore-centre-to-throat line (``_constriction_lengths_subvoxel``) rather than at the nearest
+#: channel voxel's centre (``docs/extraction.md``, "Constriction samples at sub-voxel positions").
+SUBVOXEL_SAMPLES = False
 
 
 def _walls(on: bool, open_axis: int = -1) -> np.ndarray:
@@ -165,14 +171,25 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, conven
     gsum = np.bincount(conns.ravel(), weights=np.repeat(area * throat_G, 2), minlength=n_p)
     pore_G = np.where(wsum > 0, gsum / np.where(wsum > 0, wsum, 1.0), CIRCLE_SHAPE_FACTOR)
     rad_tab = _radius_table(dt2, convention)
-    d, side_lt = _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore,
-                                       _walls(convention == "wall"))
+    d, side_lt = _lengths_kernel(convention)(dt2, rad_tab, centre, point, conns, r_throat, r_pore,
+                                             _walls(convention == "wall"))
     ducts = np.column_stack([d[:, 0] - side_lt[:, 0], side_lt.sum(axis=1), d[:, 1] - side_lt[:, 1]])
     ducts = np.maximum(ducts, MIN_SEGMENT)
     return {
         "area": area, "n_faces": n_faces, "n_wall": n_wall, "throat_G": throat_G, "pore_G": pore_G,
         "d": d, "side_lt": side_lt, "fraction": ducts / ducts.sum(axis=1, keepdims=True),
     }
+
+
+def _lengths_kernel(convention: str):
+    """The constriction-length kernel of ``convention``.
+
+    Samples read at their own position along the line under 'wall' when :data:`SUBVOXEL_SAMPLES`
+    is set (``docs/extraction.md``), at the channel voxel's centre otherwise (the paper's model).
+    """
+    if convention == "wall" and SUBVOXEL_SAMPLES:
+        return _constriction_lengths_subvoxel
+    return _constriction_lengths
 
 
 def _layer_walled(d2, shape, ax: int, walls) -> np.ndarray:
@@ -240,7 +257,7 @@ def face_sections(labels, dt2, centre, r_pore, convention="wall"):
     d, lt = np.zeros((p_idx.size, 2)), np.zeros((p_idx.size, 2))
     for ax in range(3):  # the face's own axis stays open: the reservoir is there
         m = col // 2 == ax
-        d[m], lt[m] = _constriction_lengths(dt2, tab, centre, pts[m], conns[m], r[m], r_pore, _walls(walled, ax))
+        d[m], lt[m] = _lengths_kernel(convention)(dt2, tab, centre, pts[m], conns[m], r[m], r_pore, _walls(walled, ax))
     out = {k: np.zeros((n_p, 6)) for k in ("radius", "G", "fraction")}
     out["radius"][p_idx, col] = r
     out["G"][p_idx, col] = np.minimum(r**2 / (4.0 * area), CIRCLE_SHAPE_FACTOR)

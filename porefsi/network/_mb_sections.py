@@ -195,7 +195,28 @@ def _ridge_radius(dt2, rad_tab, a, b, c, u, box):
 
 
 @jit
+def _constriction_lengths_subvoxel(dt2, rad_tab, centre, point, conns, r_throat, r_pore, walls):
+    """:func:`_constriction_lengths` with each sample read at its own position along the line.
+
+    The staircase distance of the widest channel voxel is taken at that voxel's centre moved along
+    the side onto the sample's section plane (:func:`_stair_dist` at a sub-voxel point, the box
+    faces of ``walls`` included), not at the voxel centre: the distance field is continuous along
+    the line, so a throat one voxel thick reads the same length in metres at every refinement
+    (the voxel-snapped reading holds each voxel's value over its whole layer, a plateau of one
+    voxel of whichever grid). Same arguments and returns.
+    """
+    return _lengths(dt2, rad_tab, centre, point, conns, (r_throat, r_pore), walls, True)
+
+
+@jit
 def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, walls=None):
+    """Per throat side: pore-centre-to-throat distance and its throat-equivalent length (:func:`_lengths`)."""
+    box = np.zeros(3, np.int64) if walls is None else walls
+    return _lengths(dt2, rad_tab, centre, point, conns, (r_throat, r_pore), box, False)
+
+
+@jit
+def _lengths(dt2, rad_tab, centre, point, conns, radii, box, sub):
     r"""Per throat side: pore-centre-to-throat distance and its resistance-equivalent throat length.
 
     Side ``s`` of throat ``t`` is the segment from the centre of pore ``conns[t, s]`` to the throat
@@ -209,8 +230,10 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
 
     .. math:: L_t = \frac{I - d / R^4}{r_t^{-4} - R^{-4}} \in [0, d],
 
-    or ``d / 2`` when ``R <= r_t`` (no constriction: both ducts alike). ``walls`` (int64 (3,),
-    optional): axes whose box faces are solid for the samples (:func:`_d2`); none by default.
+    or ``d / 2`` when ``R <= r_t`` (no constriction: both ducts alike). ``radii``: the throat
+    radii (Nt,) and pore radii (Np,). ``box`` (int64 (3,)): axes whose box faces are solid for the
+    samples (:func:`_d2`). ``sub``: read each sample at its own position along the line
+    (:func:`_constriction_lengths_subvoxel`) instead of at the channel voxel's centre.
 
     Returns
     -------
@@ -219,7 +242,7 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
     lt : ndarray of float64, shape (Nt, 2)
         Throat-equivalent length of each side, voxels.
     """
-    box = np.zeros(3, np.int64) if walls is None else walls
+    r_throat, r_pore = radii
     n_t = conns.shape[0]
     d_out = np.zeros((n_t, 2), np.float64)
     lt_out = np.zeros((n_t, 2), np.float64)
@@ -242,7 +265,7 @@ def _constriction_lengths(dt2, rad_tab, centre, point, conns, r_throat, r_pore, 
             for q in range(m):
                 f = (q + 0.5) / m
                 x = (centre[p, 0] + f * dx, centre[p, 1] + f * dy, centre[p, 2] + f * dz)
-                r = _section_radius(dt2, rad_tab, x, (dx / d, dy / d, dz / d), e1, e2, box)
+                r = _section_radius(dt2, rad_tab, x, (dx / d, dy / d, dz / d), (e1, e2), box, sub)
                 r = min(max(r, rt), R)
                 acc += 1.0 / (r * r * r * r)
             integral = acc * d / m
@@ -275,7 +298,7 @@ def _nearest(x, n):
 
 
 @jit
-def _section_radius(dt2, rad_tab, x, u, e1, e2, box):
+def _section_radius(dt2, rad_tab, x, u, plane, box, sub=False):
     """Channel radius of the cross-section through point x normal to u: the widest ball centred there.
 
     ``rho`` is the radius at the voxel nearest to x (0 in solid). The voxels nearest to the points
@@ -283,8 +306,11 @@ def _section_radius(dt2, rad_tab, x, u, e1, e2, box):
     at x, so the search stays in the channel and scales with it) are searched for the largest
     radius, and the ridge estimate (:func:`_ridge_radius`) of that voxel is returned: a line
     running beside the channel's axis, at any offset the channel's own ball covers, reads the
-    axis's radius at every resolution. ``box``: the walled axes (:func:`_d2`).
+    axis's radius at every resolution. ``plane``: the unit pair (e1, e2) normal to u. ``box``:
+    the walled axes (:func:`_d2`). ``sub``: the staircase distance is read at that voxel's centre
+    moved along u onto the plane through x (:func:`_ridge_radius`).
     """
+    e1, e2 = plane
     nx, ny, nz = dt2.shape
     a, b, c = _nearest(x[0], nx), _nearest(x[1], ny), _nearest(x[2], nz)
     best = _d2(dt2, a, b, c, box)
@@ -303,7 +329,34 @@ def _section_radius(dt2, rad_tab, x, u, e1, e2, box):
             v = _d2(dt2, i, j, k, box)
             if v > best:
                 best, ba, bb, bc = v, i, j, k
-    return _ridge_radius(dt2, rad_tab, ba, bb, bc, u, box)
+    if not sub:
+        return _ridge_radius(dt2, rad_tab, ba, bb, bc, u, box)
+    h = (x[0] - ba) * u[0] + (x[1] - bb) * u[1] + (x[2] - bc) * u[2]
+    q = (ba + h * u[0], bb + h * u[1], bc + h * u[2])
+    return _plane_peak(dt2, q, plane, box, math.sqrt(best) + 1.0)
+
+
+@jit
+def _plane_peak(dt2, q, plane, box, reach):
+    """Largest staircase distance over a grid in the plane through q spanned by ``plane`` (e1, e2).
+
+    ``(2 n + 1)^2`` points, ``n = 4``, at spacing ``1 / (2 n)`` within half a voxel of q along e1
+    and e2: the throat radius's estimator (:func:`_stair_section_peaks`) in the section's own
+    plane. Each distance is to the nearest solid voxel cube or walled box face (``box``,
+    :func:`_box_gap`), at most ``reach``.
+    """
+    e1, e2 = plane
+    n = 4
+    best = 0.0
+    for s in range(-n, n + 1):
+        for t in range(-n, n + 1):
+            a, b = 0.5 * s / n, 0.5 * t / n
+            x = q[0] + a * e1[0] + b * e2[0]
+            y = q[1] + a * e1[1] + b * e2[1]
+            z = q[2] + a * e1[2] + b * e2[2]
+            d = min(_stair_dist(dt2, x, y, z, reach), _box_gap(dt2.shape, x, y, z, box, -1))
+            best = max(best, d)
+    return best
 
 
 @jit

@@ -140,11 +140,27 @@ def ridge_radius(dt2, radius_of, idx, u, walls=(0, 0, 0)):
     return f + min(float(np.max(np.abs(across))), 0.5)
 
 
-def section_radius(dt2, radius_of, x, u, walls=(0, 0, 0)):
+def plane_peak(dt2, q, e1, e2, reach, walls=(0, 0, 0)):
+    """Largest distance to the nearest solid voxel cube (the padded image, :func:`_padded_solid`)
+    over the 9 x 9 points q + a e1 + b e2, a, b in {-1/2, -3/8, ..., 1/2}; each at most reach."""
+    solid = _padded_solid(dt2 == 0, walls)
+    best = 0.0
+    for a in np.arange(-4, 5) / 8:
+        for b in np.arange(-4, 5) / 8:
+            x = np.asarray(q, float) + a * np.asarray(e1) + b * np.asarray(e2)
+            gap = np.maximum(np.abs(solid - x) - 0.5, 0.0)
+            d = float(np.sqrt((gap**2).sum(axis=1)).min()) if solid.size else reach
+            best = max(best, min(d, reach))
+    return best
+
+
+def section_radius(dt2, radius_of, x, u, walls=(0, 0, 0), subvoxel=False):
     """Largest ridge radius over the voxels nearest to the points x + s e1 + t e2 (integer s, t,
     s^2 + t^2 <= rho^2, rho the radius at the voxel nearest to x; e1, e2 an orthonormal pair
     normal to u, e1 from the x axis, or the y axis when u is within ~25 degrees of x); 0 in solid.
-    Ties keep the first voxel met (s, then t, ascending; x's own voxel before all)."""
+    Ties keep the first voxel met (s, then t, ascending; x's own voxel before all). ``subvoxel``:
+    instead of that voxel's ridge radius, :func:`plane_peak` at its centre moved along u into the
+    plane through x, reach ``sqrt(dt2) + 1`` of the voxel."""
     def nearest(p):
         return tuple(min(max(math.floor(p[k] + 0.5), 0), dt2.shape[k] - 1) for k in range(3))
 
@@ -166,10 +182,15 @@ def section_radius(dt2, radius_of, x, u, walls=(0, 0, 0)):
             v = nearest([x[k] + s * e1[k] + t * e2[k] for k in range(3)])
             if int(dt2[v]) > best:
                 best, where = int(dt2[v]), v
+    if subvoxel:
+        w = np.asarray(where, float)
+        q = w + np.dot(np.asarray(x, float) - w, u) * u
+        return plane_peak(dt2, q, e1, e2, math.sqrt(best) + 1.0, walls)
     return ridge_radius(dt2, radius_of, where, u, walls)
 
 
-def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore, step, walls=(0, 0, 0)):
+def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore, step, walls=(0, 0, 0),
+                         subvoxel=False):
     """Side lengths d (Nt, 2) and resistance-equivalent throat lengths (Nt, 2), voxels.
 
     ``radius_of(v)`` gives the radius of a distance-map value. Along the straight segment from a
@@ -178,6 +199,7 @@ def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore,
     length solves
     ``L_t / r_t^4 + (d - L_t) / R^4 = sum(dx / r^4)``. With ``walls``, ``dt2`` is the walled map
     (:func:`box_walled`) and the staircase includes the solid layers across the walled faces.
+    ``subvoxel``: the samples read :func:`section_radius` with ``subvoxel``.
     """
     n_t = len(conns)
     d_out = np.zeros((n_t, 2))
@@ -196,7 +218,7 @@ def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore,
             total = 0.0
             for q in range(m):
                 x = [centre[p][k] + (q + 0.5) / m * vec[k] for k in range(3)]
-                r = min(max(section_radius(dt2, radius_of, x, [v / d for v in vec], walls), rt), R)
+                r = min(max(section_radius(dt2, radius_of, x, [v / d for v in vec], walls, subvoxel), rt), R)
                 total += (d / m) / r**4
             lt = (total - d / R**4) / (1 / rt**4 - 1 / R**4)
             lt_out[t, s] = min(max(lt, 0.0), d)
