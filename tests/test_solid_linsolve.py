@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from porefsi.errors import ConvergenceError
+from porefsi.errors import ConvergenceError, InputError
 from porefsi.image.voxel_image import VoxelImage
 from porefsi.solid.bc import uniaxial_bcs
 from porefsi.solid.linsolve import (
@@ -188,7 +188,11 @@ def test_recycled_amg_solves_match_the_direct_solve_and_skip_known_loads(rock_mo
     m = rock_model
     K = m.tangent(np.zeros(m.n_dofs), 1.0)
     lu = direct_solver_factory()(K)
-    fac = AMGSolverFactory(m.dof_points, m.free, rtol=1e-10, recycle=24)
+    fac = AMGSolverFactory(m.dof_points, m.free, rtol=1e-10)
+    fac.recycle = 24
+    for bad in (-1, 2.5):
+        with pytest.raises(InputError, match="recycle must be an integer >= 0"):
+            fac.recycle = bad
     solve = fac(K)
     b1, b2, b3 = rng.standard_normal((3, m.n_dofs))
 

@@ -250,14 +250,16 @@ class AMGSolverFactory:
         Near-null space = the six rigid-body modes (True) or the three translations only (False,
         for comparison: on a slender cantilever CG needs ~10x more iterations without the
         rotations, on the porous rock ~25 % more; see tests/test_solid_linsolve.py).
-    recycle : int, default :data:`RECYCLE_VECTORS`
-        Previous solutions kept per matrix (0: none). A solve with a matrix that served earlier
-        solves starts from the A-orthogonal projection of its right-hand side onto their span
-        (:class:`SolutionSpace`), so a load that repeats or combines earlier ones costs few or no
-        CG iterations; the stopping test is unchanged (the residual is recomputed from the start).
 
     Attributes
     ----------
+    recycle : int
+        Previous solutions kept per matrix, :data:`RECYCLE_VECTORS` unless set (0: none; a
+        negative value raises :class:`~porefsi.errors.InputError`). A solve with a matrix that
+        served earlier solves starts from the A-orthogonal projection of its right-hand side onto
+        their span (:class:`SolutionSpace`), so a load that repeats or combines earlier ones costs
+        few or no CG iterations; the stopping test is unchanged (the residual is recomputed from
+        the start).
     theta : float
         Strength-of-connection threshold of the aggregation (pyamg's symmetric measure), read at
         each hierarchy build; :data:`STRENGTH_THETA` unless changed.
@@ -265,7 +267,7 @@ class AMGSolverFactory:
 
     def __init__(self, dof_points: np.ndarray, free: np.ndarray, *, rtol: float = 1e-8,
                  rebuild_iterations: int = 40, maxiter: int = 1000, max_coarse: int = 300,
-                 rotations: bool = True, recycle: int | None = None):
+                 rotations: bool = True):
         self.n_full = 3 * len(dof_points)
         self.free = np.asarray(free, dtype=np.int64)
         self.B_full = rigid_body_modes(dof_points)
@@ -274,13 +276,22 @@ class AMGSolverFactory:
         self.rtol, self.rebuild_iterations, self.maxiter = float(rtol), int(rebuild_iterations), int(maxiter)
         self.max_coarse = int(max_coarse)
         self.theta = STRENGTH_THETA
-        self.recycle = RECYCLE_VECTORS if recycle is None else int(recycle)
-        if self.recycle < 0:
-            raise InputError(f"recycle must be >= 0 (solutions kept per matrix), got {recycle!r}")
+        self.recycle = RECYCLE_VECTORS
         self.ml = None
         self.n_setups = 0
         self.last = SolveInfo()
         self._pad = np.zeros(self.n_full)
+
+    @property
+    def recycle(self) -> int:
+        """Previous solutions kept per matrix (see the class's Attributes)."""
+        return self._recycle
+
+    @recycle.setter
+    def recycle(self, k: int) -> None:
+        if int(k) != k or k < 0:
+            raise InputError(f"recycle must be an integer >= 0 (solutions kept per matrix), got {k!r}")
+        self._recycle = int(k)
 
     def _padded(self, A: sp.spmatrix) -> sp.bsr_matrix:
         """The full-size BSR matrix: ``A`` on the free rows and columns, the mean diagonal at the constrained.

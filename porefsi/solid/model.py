@@ -270,7 +270,8 @@ class SolidModel:
     def solver_factory(self) -> AMGSolverFactory:
         """The shared AMG factory (created on first use)."""
         if self._solver_factory is None:
-            self._solver_factory = AMGSolverFactory(self.dof_points, self.free, recycle=self.recycle)
+            self._solver_factory = AMGSolverFactory(self.dof_points, self.free)
+            self._solver_factory.recycle = self.recycle
         return self._solver_factory
 
     def reactions(self, u: np.ndarray, t: float) -> dict[str, np.ndarray]:
