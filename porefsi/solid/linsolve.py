@@ -255,7 +255,7 @@ class AMGSolverFactory:
     ----------
     recycle : int
         Previous solutions kept per matrix, :data:`RECYCLE_VECTORS` unless set (0: none; a
-        negative value raises :class:`~porefsi.errors.InputError`). A solve with a matrix that
+        negative or fractional value raises :class:`~porefsi.errors.InputError`). A solve with a matrix that
         served earlier solves starts from the A-orthogonal projection of its right-hand side onto
         their span (:class:`SolutionSpace`), so a load that repeats or combines earlier ones costs
         few or no CG iterations; the stopping test is unchanged (the residual is recomputed from
