@@ -147,3 +147,27 @@ def _pore_solid_faces(pore):
                     n += 1
         per[i] = n
     return per.sum()
+
+
+@jit
+def _d2(dt2, a, b, c, box):
+    """``dt2[a, b, c]`` with the box faces of every axis ``t`` with ``box[t]`` non-zero as solid.
+
+    A solid voxel layer just outside a face is nearest straight across: the squared distance from
+    voxel ``i`` to it is ``(i + 1)^2`` (low face) or ``(n - i)^2`` (high face), so the walled map is
+    ``min(dt2, those)`` (``tests/reference/sections_ref.py::box_walled`` pads the image instead).
+    """
+    v = np.int64(dt2[a, b, c])
+    if v == 0:
+        return v
+    nx, ny, nz = dt2.shape
+    if box[0] != 0:
+        g = np.int64(min(a + 1, nx - a))
+        v = min(v, g * g)
+    if box[1] != 0:
+        g = np.int64(min(b + 1, ny - b))
+        v = min(v, g * g)
+    if box[2] != 0:
+        g = np.int64(min(c + 1, nz - c))
+        v = min(v, g * g)
+    return v

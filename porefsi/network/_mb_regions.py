@@ -11,6 +11,7 @@ from numba import types
 from numba.typed import Dict
 
 from porefsi._numba import jit
+from porefsi.network._mb_edt import _d2
 
 
 @jit
@@ -152,7 +153,7 @@ def _grown(conns, w, point, nf, nt):
 
 
 @jit
-def _interfaces(labels, dt2, n_pores):
+def _interfaces(labels, dt2, n_pores, walls=None):
     """Aggregate the voxel faces shared by two different pore labels into throats.
 
     For each pair ``(a < b)`` of touching labels: the number of shared faces, the largest
@@ -160,6 +161,8 @@ def _interfaces(labels, dt2, n_pores):
     interface) and the centre of the first face that attains it (voxel-index coordinates, a
     face between voxels ``i`` and ``i + 1`` sits at ``i + 0.5``). Throats are numbered in the
     order their first face is met in a C-order scan (x, then y, then z faces per voxel).
+    ``walls`` (int64 (3,), optional): axes whose box faces count as solid for ``w``
+    (:func:`porefsi.network._mb_edt._d2`); none by default.
 
     Returns
     -------
@@ -169,6 +172,7 @@ def _interfaces(labels, dt2, n_pores):
     n_faces : ndarray of int64, shape (Nt,)
     """
     nx, ny, nz = labels.shape
+    box = np.zeros(3, np.int64) if walls is None else walls
     table = Dict.empty(key_type=types.int64, value_type=types.int64)
     conns, w = np.empty((256, 2), np.int64), np.empty(256, np.int64)
     point, nf = np.empty((256, 3), np.float64), np.empty(256, np.int64)
@@ -198,7 +202,7 @@ def _interfaces(labels, dt2, n_pores):
                         conns[t, 0], conns[t, 1] = min(la, lb), max(la, lb)
                         w[t], nf[t] = -1, 0
                     nf[t] += 1
-                    val = min(dt2[i, j, k], dt2[a, b, c])
+                    val = min(_d2(dt2, i, j, k, box), _d2(dt2, a, b, c, box))
                     if val > w[t]:
                         w[t] = val
                         point[t, 0], point[t, 1], point[t, 2] = 0.5 * (i + a), 0.5 * (j + b), 0.5 * (k + c)

@@ -13,6 +13,8 @@ from numba import types
 from numba.typed import Dict
 
 from porefsi._numba import jit
+from porefsi.network._mb_edt import _d2
+from porefsi.network._mb_regions import _interfaces
 
 #: Spacing (voxels) of the constriction samples along a pore-centre-to-throat line.
 SAMPLE_STEP = 0.25
@@ -103,37 +105,13 @@ def _sections(labels, conns, n_pores, walls=None):
     return area, nf, nw
 
 
-@jit
-def _d2(dt2, a, b, c, box):
-    """``dt2[a, b, c]`` with the box faces of every axis ``t`` with ``box[t]`` non-zero as solid.
-
-    A solid voxel layer just outside a face is nearest straight across: the squared distance from
-    voxel ``i`` to it is ``(i + 1)^2`` (low face) or ``(n - i)^2`` (high face), so the walled map is
-    ``min(dt2, those)`` (``tests/reference/sections_ref.py::box_walled`` pads the image instead).
-    """
-    v = np.int64(dt2[a, b, c])
-    if v == 0:
-        return v
-    nx, ny, nz = dt2.shape
-    if box[0] != 0:
-        g = np.int64(min(a + 1, nx - a))
-        v = min(v, g * g)
-    if box[1] != 0:
-        g = np.int64(min(b + 1, ny - b))
-        v = min(v, g * g)
-    if box[2] != 0:
-        g = np.int64(min(c + 1, nz - c))
-        v = min(v, g * g)
-    return v
-
-
-@jit
 def _walled_points(labels, dt2, conns, n_pores, walls):
     """Each throat's largest ``w = min(d2[u], d2[v])`` over its interface faces and that face's centre.
 
-    ``d2`` is the distance map with the walled box faces as solid (:func:`_d2`); ties keep the
-    first face met in a C-order scan (x, then y, then z faces per voxel), as the extraction's
-    ``_interfaces`` does on the open map (equal to it when ``walls`` is all 0).
+    ``d2`` is the distance map with the walled box faces as solid (:func:`~porefsi.network._mb_edt._d2`):
+    the extraction's own interface scan (:func:`porefsi.network._mb_regions._interfaces`) on that
+    map, read in the order of ``conns`` (ties keep the first face met in its C-order scan; equal to
+    the open map's when ``walls`` is all 0).
 
     Returns
     -------
@@ -141,35 +119,12 @@ def _walled_points(labels, dt2, conns, n_pores, walls):
     point : ndarray of float64, shape (Nt, 3)
         Voxel-index coordinates (a face between voxels ``i`` and ``i + 1`` at ``i + 0.5``).
     """
-    nx, ny, nz = labels.shape
-    n_t = conns.shape[0]
-    table = Dict.empty(key_type=types.int64, value_type=types.int64)
-    for t in range(n_t):
-        table[np.int64(conns[t, 0]) * n_pores + conns[t, 1]] = t
-    w = np.full(n_t, -1, np.int64)
-    point = np.zeros((n_t, 3), np.float64)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                la = labels[i, j, k]
-                if la < 0:
-                    continue
-                for ax in range(3):
-                    a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
-                    if a >= nx or b >= ny or c >= nz:
-                        continue
-                    lb = labels[a, b, c]
-                    key = np.int64(min(la, lb)) * n_pores + max(la, lb)
-                    if lb < 0 or lb == la or key not in table:
-                        continue
-                    t = table[key]
-                    v = min(_d2(dt2, i, j, k, walls), _d2(dt2, a, b, c, walls))
-                    if v > w[t]:
-                        w[t] = v
-                        point[t, 0] = i + 0.5 * (ax == 0)
-                        point[t, 1] = j + 0.5 * (ax == 1)
-                        point[t, 2] = k + 0.5 * (ax == 2)
-    return w, point
+    n_p = np.int64(n_pores)
+    pairs, w_all, p_all, _ = _interfaces(labels, dt2, n_p, np.asarray(walls, np.int64))
+    key_all = pairs[:, 0] * n_p + pairs[:, 1]
+    order = np.argsort(key_all)
+    idx = order[np.searchsorted(key_all, conns[:, 0] * n_p + conns[:, 1], sorter=order)]
+    return w_all[idx], p_all[idx]
 
 
 @jit
