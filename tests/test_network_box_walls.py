@@ -23,7 +23,14 @@ from porefsi.network._mb_sections import (
 )
 from porefsi.network.extract import _distance_map, extract_network
 from tests.reference.extract_ref import interfaces
-from tests.reference.sections_ref import box_walled, constriction_lengths, sections, stair_section_peaks
+from tests.reference.sections_ref import (
+    box_walled,
+    constriction_lengths,
+    sections,
+    stair_section_peaks,
+    tube_beside_face,
+    wall_radius_table,
+)
 
 WALLS = [(1, 1, 1), (0, 1, 0), (1, 0, 1), (0, 0, 0)]
 
@@ -86,20 +93,11 @@ def test_section_peaks_bounded_by_walled_faces_match_the_twin(walls):
 
 
 def test_constriction_lengths_on_the_walled_map_match_the_twin():
-    pore = np.zeros((20, 9, 9), bool)
-    g = np.indices(pore.shape)
-    pore |= (g[1] - 1) ** 2 + (g[2] - 4) ** 2 <= 12  # a tube whose axis runs 1 voxel from the y face
-    for cx in (4, 15):  # two spheres of radius 4
-        pore |= (g[0] - cx) ** 2 + (g[1] - 2) ** 2 + (g[2] - 4) ** 2 <= 16
+    pore, centre, point, conns, rt, rp = tube_beside_face()  # the tube's axis 1 voxel from the y face
     dt2 = _distance_map(pore)
     walls = (1, 1, 1)
     dtw = box_walled(pore, walls)
-    tab = np.sqrt(np.maximum(np.arange(int(dt2.max()) + 1), 1)) - 0.5
-    tab[0] = 0.0
-    centre = np.array([[4.0, 2.0, 4.0], [15.0, 2.0, 4.0]])
-    point = np.array([[9.5, 1.0, 4.0]])
-    conns = np.array([[0, 1]])
-    rt, rp = np.array([1.2]), np.array([3.0, 3.0])
+    tab = wall_radius_table(dt2.max())
     got = _constriction_lengths(dt2, tab, centre, point, conns, rt, rp, np.array(walls, np.int64))
     want = constriction_lengths(dtw, lambda v: tab[v], centre.tolist(), point.tolist(), conns.tolist(),
                                 rt.tolist(), rp.tolist(), 0.25, walls)

@@ -15,7 +15,7 @@ import pytest
 
 from porefsi.network._mb_sections import _constriction_lengths_subvoxel
 from porefsi.network.extract import _distance_map
-from tests.reference.sections_ref import box_walled, constriction_lengths
+from tests.reference.sections_ref import box_walled, constriction_lengths, tube_beside_face, wall_radius_table
 
 
 def _duct(f: int):
@@ -74,19 +74,11 @@ def test_subvoxel_kernel_matches_the_twin():
 
 
 def test_subvoxel_kernel_matches_the_twin_on_an_oblique_walled_line():
-    pore = np.zeros((20, 9, 9), bool)
-    g = np.indices(pore.shape)
-    pore |= (g[1] - 1) ** 2 + (g[2] - 4) ** 2 <= 12  # a tube whose axis runs 1 voxel from the y face
-    for cx in (4, 15):  # two spheres of radius 4
-        pore |= (g[0] - cx) ** 2 + (g[1] - 2) ** 2 + (g[2] - 4) ** 2 <= 16
+    # the tube's axis 1 voxel from the y face; the sides run obliquely: samples fall off the voxel centres
+    pore, centre, point, conns, rt, rp = tube_beside_face()
     dt2 = _distance_map(pore)
     walls = (1, 1, 1)
-    tab = np.sqrt(np.maximum(np.arange(int(dt2.max()) + 1), 1)) - 0.5
-    tab[0] = 0.0
-    centre = np.array([[4.0, 2.0, 4.0], [15.0, 2.0, 4.0]])
-    point = np.array([[9.5, 1.0, 4.0]])  # the sides run obliquely: samples fall off the voxel centres
-    conns = np.array([[0, 1]])
-    rt, rp = np.array([1.2]), np.array([3.0, 3.0])
+    tab = wall_radius_table(dt2.max())
     got = _constriction_lengths_subvoxel(dt2, tab, centre, point, conns, rt, rp, np.array(walls, np.int64))
     want = constriction_lengths(box_walled(pore, walls), lambda v: tab[v], centre.tolist(), point.tolist(),
                                 conns.tolist(), rt.tolist(), rp.tolist(), 0.25, walls, subvoxel=True)

@@ -223,3 +223,27 @@ def constriction_lengths(dt2, radius_of, centre, point, conns, r_throat, r_pore,
             lt = (total - d / R**4) / (1 / rt**4 - 1 / R**4)
             lt_out[t, s] = min(max(lt, 0.0), d)
     return d_out, lt_out
+
+
+def tube_beside_face():
+    """Test geometry: two spheres of radius 4 joined by a tube whose axis runs 1 voxel from the y face.
+
+    Returns ``pore`` (bool (20, 9, 9)), the wall-convention radius table ``tab`` (index: squared
+    distance) for its distance map up to ``max_d2``, and one throat between the spheres:
+    ``centre`` (2, 3), ``point`` (1, 3), ``conns`` (1, 2), ``r_throat`` (1,), ``r_pore`` (2,).
+    """
+    pore = np.zeros((20, 9, 9), bool)
+    g = np.indices(pore.shape)
+    pore |= (g[1] - 1) ** 2 + (g[2] - 4) ** 2 <= 12
+    for cx in (4, 15):
+        pore |= (g[0] - cx) ** 2 + (g[1] - 2) ** 2 + (g[2] - 4) ** 2 <= 16
+    centre = np.array([[4.0, 2.0, 4.0], [15.0, 2.0, 4.0]])
+    point = np.array([[9.5, 1.0, 4.0]])
+    return pore, centre, point, np.array([[0, 1]]), np.array([1.2]), np.array([3.0, 3.0])
+
+
+def wall_radius_table(max_d2):
+    """``sqrt(d2) - 1/2`` for d2 = 0 ... max_d2 (0 at d2 = 0): the 'wall' radius, voxels."""
+    tab = np.sqrt(np.maximum(np.arange(int(max_d2) + 1), 1)) - 0.5
+    tab[0] = 0.0
+    return tab
