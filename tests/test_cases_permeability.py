@@ -83,3 +83,23 @@ def test_permeability_smoke(perm, tmp_path):
 
 def test_committed_chart_exists():
     assert (CASE / "figures" / "permeability_speed_accuracy.png").is_file()
+
+
+def test_berea_option_missing_file_is_a_one_line_error_before_any_output(perm, tmp_path):
+    """``--berea PATH`` that does not exist stops the run before the output folder is made."""
+    out = tmp_path / "out"
+    with pytest.raises(perm.InputError, match="--berea .*no such file"):
+        perm.main(["--out", str(out), "--images", "crop200", "--berea", str(tmp_path / "nope.npz")])
+    assert not out.exists()
+
+
+def test_without_the_berea_the_skip_is_said_and_returned(perm, tmp_path, monkeypatch, capsys):
+    """No ``--berea`` and no file next to the repository: crop200 and berea400 are SKIPPED, loudly."""
+    monkeypatch.setattr(perm, "BEREA400", [tmp_path / "a.npz", tmp_path / "b.npz"])
+    path, skipped = perm.locate_berea(None, ["sample", "crop200", "berea400"])
+    assert path is None and skipped == ["crop200", "berea400"]
+    assert "SKIPPED crop200, berea400" in capsys.readouterr().out
+    given = tmp_path / "berea.npz"
+    given.write_bytes(b"")
+    assert perm.locate_berea(given, ["berea400"]) == (given, [])
+    assert perm.locate_berea(None, ["sample"]) == (None, [])  # not needed: nothing looked for

@@ -28,11 +28,19 @@ The full-resolution 400^3 solve takes ~6 GiB and about an hour of CPU per axis: 
 ``reference/berea400_voxel.json`` (written from ``benchmarks/bench_stokes.py --cases full``, with
 its commit and date) unless ``--full-resolution`` runs it here.
 
+The 400^3 Berea (the source of ``crop200`` and ``berea400``) is the npz given by ``--berea PATH``
+(``--image`` is the same option); a ``--berea`` file that does not exist is an error before anything
+runs. Without ``--berea`` the script looks for ``shared/data/berea_icl_400.npz`` one and two folders
+above the repository and says which file it uses; when there is none, it prints that
+``crop200`` and ``berea400`` are SKIPPED, records them under ``"skipped"`` in ``results.json``,
+and their earlier points (each study with its own commit and date) stay in the chart and table
+unchanged.
+
 Outputs: ``figures/permeability_speed_accuracy.png`` and the ``"permeability"`` entry of
 ``results.json`` (the coupled study's entries are kept).
 
-Usage: ``python cases/speed_accuracy/permeability.py [--smoke] [--out DIR] [--image BEREA400.npz]
-[--images sample crop200 berea400] [--walls channel ghost] [--full-resolution]``.
+Usage: ``python cases/speed_accuracy/permeability.py [--smoke] [--out DIR] [--berea BEREA400.npz]
+[--images sample crop200 berea400] [--walls channel ghost] [--networks-only] [--full-resolution]``.
 """
 
 from __future__ import annotations
@@ -49,7 +57,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from porefsi import PorefsiError  # noqa: E402
+from porefsi import InputError, PorefsiError  # noqa: E402
 from porefsi.flow import absolute_permeability  # noqa: E402
 from porefsi.image import VoxelImage, downsample, load_sample  # noqa: E402
 from porefsi.network import extract_network  # noqa: E402
@@ -61,8 +69,11 @@ from _common import git_head, loadavg, output_dir, parse_args, pyplot, write_res
 HERE = Path(__file__).resolve().parent
 FULL_FILE = HERE / "reference" / "berea400_voxel.json"
 REPO = HERE.parents[1]
+#: Where the 400^3 Berea is looked for when ``--berea`` is not given (next to the repository, or one up).
 BEREA400 = [REPO.parent / "shared" / "data" / "berea_icl_400.npz",
             REPO.parent.parent / "shared" / "data" / "berea_icl_400.npz"]
+#: The images made from the 400^3 Berea (skipped without it).
+FROM_BEREA = ("crop200", "berea400")
 #: Published voxel-scale simulation of the 400^3 Berea, mD (axis mapping uncertain: compare means).
 DNS_MD = {"x": 1360.0, "y": 1304.0, "z": 1193.0}
 DNS_MEAN_MD = float(np.mean(list(DNS_MD.values())))
@@ -87,10 +98,9 @@ def images(smoke: bool, which, berea400: Path | None):
         return
     if "sample" in which:
         yield "sample120", load_sample(), "finest voxel solve", (1, 2, 3, 4)
-    if berea400 is None and {"crop200", "berea400"} & set(which):
-        print("400^3 Berea not found (--image): skipping crop200 and berea400", flush=True)
+    if berea400 is None:  # locate_berea said so and recorded the skip
         return
-    if {"crop200", "berea400"} & set(which):
+    if set(FROM_BEREA) & set(which):
         with np.load(berea400) as d:
             big = VoxelImage(d["image"].astype(bool), float(d["voxel_size_m"]))
         if "crop200" in which:
@@ -98,6 +108,43 @@ def images(smoke: bool, which, berea400: Path | None):
                 "finest voxel solve", (1, 2, 3, 4)
         if "berea400" in which:
             yield "berea400", big, "published DNS", (1, 2, 3, 4)
+
+
+def locate_berea(given: Path | None, which, smoke: bool = False) -> tuple[Path | None, list[str]]:
+    """The 400^3 Berea npz to use, and the images skipped for want of it.
+
+    Parameters
+    ----------
+    given : Path or None
+        ``--berea``: must exist (``InputError`` otherwise, before any output is touched).
+    which : iterable of str
+        The images asked for (``--images``).
+    smoke : bool
+        Smoke runs use the built-in sample only: nothing is looked for or skipped.
+
+    Returns
+    -------
+    path : Path or None
+        The file (None: not needed, or not found).
+    skipped : list of str
+        The images of ``FROM_BEREA`` asked for but not run (no file found); a SKIPPED line says so.
+    """
+    wanted = [n for n in FROM_BEREA if n in which]
+    if smoke or not wanted:
+        return None, []
+    if given is not None:
+        if not given.is_file():
+            raise InputError(f"--berea {given}: no such file; pass the 400^3 Berea npz "
+                             "(e.g. /work/shared/data/berea_icl_400.npz) or leave out crop200 and berea400 (--images)")
+        return given, []
+    found = next((p for p in BEREA400 if p.is_file()), None)
+    if found is not None:
+        print(f"400^3 Berea: using {found} (found next to the repository; --berea PATH chooses the file)", flush=True)
+        return found, []
+    print(f"SKIPPED {', '.join(wanted)}: the 400^3 Berea npz was not found (looked for "
+          f"{' and '.join(str(p) for p in BEREA400)}); pass --berea PATH. Their earlier points in results.json "
+          "are kept, each study with its own commit and date.", flush=True)
+    return None, wanted
 
 
 def voxel_point(image: VoxelImage, factor: int, wall: str = WALLS[0]) -> dict:
@@ -290,7 +337,10 @@ def _replot(out: Path) -> int:
 
 
 def _arguments(p) -> None:
-    p.add_argument("--image", type=Path, default=None, help="the 400^3 Berea npz (default: ../shared/data/)")
+    p.add_argument("--berea", "--image", dest="berea", type=Path, default=None,
+                   help="the 400^3 Berea npz, source of crop200 and berea400 (default: shared/data/berea_icl_400.npz "
+                        "one or two folders above the repository, if there; otherwise those images are skipped, "
+                        "and the run says so)")
     p.add_argument("--images", nargs="+", default=["sample", "crop200", "berea400"],
                    choices=["sample", "crop200", "berea400"], help="which images to study")
     p.add_argument("--walls", nargs="+", default=[WALLS[0]], choices=list(WALLS),
@@ -309,11 +359,11 @@ def _arguments(p) -> None:
 def main(argv=None) -> int:
     """Run the permeability study."""
     args = parse_args(__doc__, argv, _arguments, smoke_help="seconds-long version (32^3 corner, coarsening 1, 2)")
-    out = output_dir(args, HERE)
-    berea = args.image if args.image is not None else next((p for p in BEREA400 if p.exists()), None)
-    studies = []
     if args.replot:
-        return _replot(out)
+        return _replot(output_dir(args, HERE))
+    berea, skipped = locate_berea(args.berea, args.images, args.smoke)  # before the output folder is touched
+    out = output_dir(args, HERE)
+    studies = []
     head = git_head()  # the code the points are computed with (HEAD may move during an hour-long run)
     before = _saved_studies(out) if args.networks_only else {}
     _warm_up()
@@ -351,7 +401,10 @@ def main(argv=None) -> int:
         kept = [st for st in saved.get("permeability", {}).get("studies", []) if st["image"] not in done]
         order = ["sample120", "crop200", "berea400"]
         studies = sorted(kept + studies, key=lambda st: order.index(st["image"]) if st["image"] in order else 9)
-    saved["permeability"] = {"smoke": args.smoke, "dns_mD": DNS_MD, "dns_mean_mD": DNS_MEAN_MD, "studies": studies}
+    saved["permeability"] = {"smoke": args.smoke, "dns_mD": DNS_MD, "dns_mean_mD": DNS_MEAN_MD, "studies": studies,
+                             "berea400_file": None if berea is None else str(berea),
+                             "skipped": {n: "400^3 Berea npz not found (--berea); earlier points kept"
+                                         for n in skipped}}
     write_results(res_path, saved)
     (out / "permeability_table.md").write_text(table(studies))
     plot(studies, out / "figures" / "permeability_speed_accuracy.png")
