@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from porefsi.network._mb_section_law import section_law_lengths
 from porefsi.network._mb_sections import (
     _constriction_lengths,
     _constriction_lengths_subvoxel,
@@ -33,6 +34,16 @@ BOX_WALLS = (True, True, True)
 #: pore-centre-to-throat line (``_constriction_lengths_subvoxel``) rather than at the nearest
 #: channel voxel's centre (``docs/extraction.md``, "Constriction samples at sub-voxel positions").
 SUBVOXEL_SAMPLES = False
+
+#: Under the "wall" convention, integrate each side's resistance with the duct law of the local
+#: section (inscribed radius and planar section area per sample, ``section_law_lengths``) rather
+#: than ``1 / r^4`` of the radius alone (``docs/extraction.md``, "Constriction length with the
+#: section's own law").
+SECTION_LAW = False
+
+#: Under the "wall" convention, add Sampson's end resistance of the throat's mouths to each side's
+#: constriction length (``docs/extraction.md``): ``3 pi r_t / 16`` per side with a constriction.
+END_CORRECTION = 0.0
 
 
 def _walls(on: bool, open_axis: int = -1) -> np.ndarray:
@@ -171,8 +182,15 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, conven
     gsum = np.bincount(conns.ravel(), weights=np.repeat(area * throat_G, 2), minlength=n_p)
     pore_G = np.where(wsum > 0, gsum / np.where(wsum > 0, wsum, 1.0), CIRCLE_SHAPE_FACTOR)
     rad_tab = _radius_table(dt2, convention)
-    d, side_lt = _lengths_kernel(convention)(dt2, rad_tab, centre, point, conns, r_throat, r_pore,
-                                             _walls(convention == "wall"))
+    if convention == "wall" and SECTION_LAW:
+        d, side_lt = section_law_lengths(labels, dt2, rad_tab, (centre, point, conns),
+                                         (r_throat, r_pore, throat_G, pore_G), _walls(True))
+    else:
+        d, side_lt = _lengths_kernel(convention)(dt2, rad_tab, centre, point, conns, r_throat, r_pore,
+                                                 _walls(convention == "wall"))
+    if convention == "wall" and END_CORRECTION:
+        has = r_pore[conns] > r_throat[:, None]
+        side_lt = np.where(has, np.minimum(side_lt + END_CORRECTION * 3.0 * np.pi / 16.0 * r_throat[:, None], d), side_lt)
     ducts = np.column_stack([d[:, 0] - side_lt[:, 0], side_lt.sum(axis=1), d[:, 1] - side_lt[:, 1]])
     ducts = np.maximum(ducts, MIN_SEGMENT)
     return {
@@ -231,7 +249,7 @@ def _face_cuts(labels, dt2, n_p: int, walls):
     return count, point
 
 
-def face_sections(labels, dt2, centre, r_pore, convention="wall"):
+def face_sections(labels, dt2, centre, r_pore, convention="wall", pore_G=None):
     """The face cuts' inscribed radius, shape factor and duct fraction (Np, 6) each; 0 off the faces.
 
     For every pore region touching a box face: area ``A`` = its voxels in the face layer (voxel
@@ -242,7 +260,8 @@ def face_sections(labels, dt2, centre, r_pore, convention="wall"):
     ``pi r^2``, ``G = r^2 / (4 A)`` (as for throats), and the share of the
     pore-centre-to-face-point line the constriction takes: the resistance-equivalent
     constriction length (:func:`porefsi.network._mb_sections._constriction_lengths`) over the
-    line's length. Voxel units; ``convention`` as in :func:`measure_sections`.
+    line's length. Voxel units; ``convention`` as in :func:`measure_sections`. ``pore_G`` (Np,):
+    the pores' shape factors, for the section-law constriction length (:data:`SECTION_LAW`).
     """
     n_p = r_pore.size
     walled = convention == "wall"
@@ -255,12 +274,19 @@ def face_sections(labels, dt2, centre, r_pore, convention="wall"):
     conns = np.column_stack([p_idx, p_idx]).astype(np.int64)
     tab = _radius_table(dt2, convention)
     d, lt = np.zeros((p_idx.size, 2)), np.zeros((p_idx.size, 2))
+    G_f = np.minimum(r**2 / (4.0 * area), CIRCLE_SHAPE_FACTOR)
+    law = walled and SECTION_LAW and pore_G is not None
     for ax in range(3):  # the face's own axis stays open: the reservoir is there
         m = col // 2 == ax
-        d[m], lt[m] = _lengths_kernel(convention)(dt2, tab, centre, pts[m], conns[m], r[m], r_pore, _walls(walled, ax))
+        if law:
+            d[m], lt[m] = section_law_lengths(labels, dt2, tab, (centre, pts[m], conns[m]),
+                                              (r[m], r_pore, G_f[m], pore_G), _walls(True, ax))
+        else:
+            d[m], lt[m] = _lengths_kernel(convention)(dt2, tab, centre, pts[m], conns[m], r[m], r_pore,
+                                                      _walls(walled, ax))
     out = {k: np.zeros((n_p, 6)) for k in ("radius", "G", "fraction")}
     out["radius"][p_idx, col] = r
-    out["G"][p_idx, col] = np.minimum(r**2 / (4.0 * area), CIRCLE_SHAPE_FACTOR)
+    out["G"][p_idx, col] = G_f
     out["fraction"][p_idx, col] = np.clip(lt[:, 0] / np.maximum(d[:, 0], 1e-300), 0.0, 1.0)
     return out
 

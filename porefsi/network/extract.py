@@ -474,7 +474,7 @@ def _conduits(dt2, labels, top: _Topology, conductance) -> _Conduits:
     if convention == "wall":
         point, r_pore, r_throat = subvoxel_radii(dt2, labels, top.centre, conns)
     sec = measure_sections(labels, dt2, top.centre, point, conns, r_throat, r_pore, convention)
-    sec["face"] = face_sections(labels, dt2, top.centre, r_pore, convention)
+    sec["face"] = face_sections(labels, dt2, top.centre, r_pore, convention, sec["pore_G"])
     return _Conduits(r_pore, r_throat, lt, lp, sec)
 
 

@@ -1,0 +1,231 @@
+"""Constriction samples with the local section's own duct law (private kernels of the extraction).
+
+Integer voxel coordinates as in :mod:`porefsi.network._mb_sections`. Each sample along a
+pore-centre-to-throat side reads the channel's inscribed radius (the ridge estimate of
+:func:`porefsi.network._mb_sections._ridge_radius`, as the default samples do) *and* the area of
+the channel's planar section normal to the side (:func:`_plane_area`), so the side's resistance
+integral can use the conductance law of the ducts it is replaced by (``k G A^2``) instead of
+``1 / r^4``. Twin: ``tests/reference/section_law_ref.py``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from porefsi._numba import jit
+from porefsi.network._mb_edt import _d2
+from porefsi.network._mb_sections import SAMPLE_STEP, _nearest, _perp_basis, _section_radius
+from porefsi.network.geometry import duct_conductance_factor
+from porefsi.network.network import CIRCLE_SHAPE_FACTOR
+
+
+@jit
+def _grid_voxel(x, e1, e2, s, t, dims):
+    """Voxel (i, j, k) nearest to the plane-grid point ``x + s e1 + t e2``; (-1, -1, -1) off the image."""
+    p = (x[0] + s * e1[0] + t * e2[0], x[1] + s * e1[1] + t * e2[1], x[2] + s * e1[2] + t * e2[2])
+    out = np.empty(3, np.int64)
+    for a in range(3):
+        v = int(math.floor(p[a] + 0.5))
+        if v < 0 or v >= dims[a]:
+            return -1, -1, -1
+        out[a] = v
+    return out[0], out[1], out[2]
+
+
+@jit
+def _in_channel(dt2, labels, box, i, j, k, la, lb):
+    """Voxel (i, j, k) is pore on the walled map and belongs to pore ``la`` or ``lb``."""
+    if i < 0:
+        return False
+    if _d2(dt2, i, j, k, box) == 0:
+        return False
+    lab = labels[i, j, k]
+    return lab == la or lab == lb
+
+
+@jit
+def _plane_area(dt2, labels, box, x, plane, start, pair, cap, work):
+    """Area (voxel faces) of the channel's section through x in the plane spanned by ``plane``.
+
+    The plane is sampled on the unit grid ``x + s e1 + t e2`` (integers s, t; each point stands for
+    one voxel face of the plane), each point read at its nearest voxel. From the grid point
+    ``start`` (s0, t0), the 4-connected set of points whose voxel is pore (walled map, ``box``) and
+    belongs to one of the two pores ``pair`` (la, lb) is counted, up to ``cap`` points (the count
+    then returns ``cap``). ``work``: int64 scratch arrays (seen (W, W), stack (W * W, 2), trail
+    (W * W, 2)), ``W`` odd, the grid centred on s = t = 0 (points beyond it are not visited);
+    ``seen`` is all zero on entry and on return.
+    """
+    seen, stack, trail = work
+    h = seen.shape[0] // 2
+    dims = dt2.shape
+    e1, e2 = plane
+    la, lb = pair
+    s0, t0 = start
+    i, j, k = _grid_voxel(x, e1, e2, s0, t0, dims)
+    if abs(s0) > h or abs(t0) > h or not _in_channel(dt2, labels, box, i, j, k, la, lb):
+        return 0
+    stack[0, 0], stack[0, 1] = s0, t0
+    trail[0, 0], trail[0, 1] = s0, t0
+    seen[s0 + h, t0 + h] = 1
+    n_stack, n_trail, count = 1, 1, 0
+    while n_stack > 0 and count < cap:
+        n_stack -= 1
+        s, t = stack[n_stack, 0], stack[n_stack, 1]
+        count += 1
+        for q in range(4):
+            u = s + (q == 0) - (q == 1)
+            v = t + (q == 2) - (q == 3)
+            if abs(u) > h or abs(v) > h or seen[u + h, v + h] != 0:
+                continue
+            seen[u + h, v + h] = 1
+            trail[n_trail, 0], trail[n_trail, 1] = u, v
+            n_trail += 1
+            i, j, k = _grid_voxel(x, e1, e2, u, v, dims)
+            if _in_channel(dt2, labels, box, i, j, k, la, lb):
+                stack[n_stack, 0], stack[n_stack, 1] = u, v
+                n_stack += 1
+    for q in range(n_trail):
+        seen[trail[q, 0] + h, trail[q, 1] + h] = 0
+    return count
+
+
+@jit
+def _widest(dt2, x, plane, box, rho):
+    """Grid offset (s, t) of the widest voxel (walled map) within the disc ``s^2 + t^2 <= rho^2``."""
+    e1, e2 = plane
+    dims = dt2.shape
+    best, bs, bt = np.int64(-1), 0, 0
+    h = int(rho)
+    for s in range(-h, h + 1):
+        for t in range(-h, h + 1):
+            if s * s + t * t > rho * rho:
+                continue
+            i, j, k = _grid_voxel(x, e1, e2, s, t, dims)
+            if i < 0:
+                continue
+            v = _d2(dt2, i, j, k, box)
+            if v > best:
+                best, bs, bt = v, s, t
+    return bs, bt
+
+
+@jit
+def _law_samples(dt2, rad_tab, labels, geom, offsets, caps, box):
+    """Inscribed radius and section area at every constriction sample of every throat side.
+
+    Side ``q = 2 t + s`` of throat ``t`` runs from the centre of pore ``conns[t, s]`` to the throat
+    point; it is sampled at the midpoints of ``offsets[q + 1] - offsets[q]`` equal parts (as
+    :func:`porefsi.network._mb_sections._lengths`, zero parts for a side not integrated). Each
+    sample reads the radius of :func:`porefsi.network._mb_sections._section_radius` (the ridge
+    estimate of the widest channel voxel within the ball inscribed at the sample, in the plane
+    normal to the side) and the area of the channel's section in that plane through the sample
+    (:func:`_plane_area`, started at that widest voxel, restricted to the throat's two pores, at
+    most ``caps[q]`` voxel faces).
+
+    Parameters
+    ----------
+    geom : tuple (centre (Np, 3) float64, point (Nt, 3) float64, conns (Nt, 2) int64)
+    offsets : ndarray of int64, shape (2 Nt + 1,)
+    caps : ndarray of int64, shape (2 Nt,)
+    box : ndarray of int64, shape (3,)
+        Walled axes (:func:`porefsi.network._mb_edt._d2`).
+
+    Returns
+    -------
+    r, area : ndarray of float64, shape (offsets[-1],)
+        Voxels, voxel faces.
+    """
+    centre, point, conns = geom
+    n_s = offsets[-1]
+    r_out = np.zeros(n_s, np.float64)
+    a_out = np.zeros(n_s, np.float64)
+    w = 2 * 64 + 1
+    work = (np.zeros((w, w), np.int64), np.zeros((w * w, 2), np.int64), np.zeros((w * w, 2), np.int64))
+    dims = dt2.shape
+    for t in range(conns.shape[0]):
+        pair = (conns[t, 0], conns[t, 1])
+        for s in range(2):
+            q = 2 * t + s
+            m = offsets[q + 1] - offsets[q]
+            if m == 0:
+                continue
+            p = conns[t, s]
+            dx, dy, dz = point[t, 0] - centre[p, 0], point[t, 1] - centre[p, 1], point[t, 2] - centre[p, 2]
+            d = math.sqrt(dx * dx + dy * dy + dz * dz)
+            u = (dx / d, dy / d, dz / d)
+            plane = _perp_basis(u[0], u[1], u[2])
+            for j in range(m):
+                f = (j + 0.5) / m
+                x = (centre[p, 0] + f * dx, centre[p, 1] + f * dy, centre[p, 2] + f * dz)
+                r_out[offsets[q] + j] = _section_radius(dt2, rad_tab, x, u, plane, box, False)
+                a, b, c = _nearest(x[0], dims[0]), _nearest(x[1], dims[1]), _nearest(x[2], dims[2])
+                rho = rad_tab[_d2(dt2, a, b, c, box)]
+                if rho == 0.0:
+                    continue
+                start = _widest(dt2, x, plane, box, rho)
+                a_out[offsets[q] + j] = _plane_area(dt2, labels, box, x, plane, start, pair, caps[q], work)
+    return r_out, a_out
+
+
+def section_law_lengths(labels, dt2, rad_tab, geom, sections, box):
+    r"""Per throat side: pore-centre-to-throat distance and its throat-equivalent length, duct-law integral.
+
+    The side is sampled as the default constriction samples are
+    (:func:`porefsi.network._mb_sections._lengths`: midpoints of ``ceil(d / SAMPLE_STEP)`` parts),
+    each sample reading the inscribed radius ``r`` and the planar section area ``A``
+    (:func:`_law_samples`), and its conductance per length is the duct law of the network,
+    ``g = duct_conductance_factor(r, min(r^2 / (4 A), 1 / (4 pi)))``
+    (:func:`porefsi.network.geometry.duct_conductance_factor`), with r clamped to
+    ``[r_t, R]`` and g to ``[g_t, g_p]`` (the throat's and the pore's ducts: radius and measured
+    shape factor). With ``I = sum (d / m) / g`` the throat length of the two ducts that have the
+    side's length and resistance is
+
+    .. math:: L_t = \frac{I - d / g_p}{1 / g_t - 1 / g_p} \in [0, d],
+
+    ``d / 2`` when ``R <= r_t`` or ``g_p <= g_t`` (no constriction). For a circular channel it is
+    the ``1 / r^4`` integral of the default samples; where the section widens faster than its
+    inscribed radius (a slit opening sideways into the pore) the constriction is shorter.
+
+    Parameters
+    ----------
+    labels : ndarray of int32, shape (nx, ny, nz)
+    dt2 : ndarray of int, shape (nx, ny, nz)
+    rad_tab : ndarray of float64
+        Radius of every distance-map value.
+    geom : tuple (centre (Np, 3), point (Nt, 3), conns (Nt, 2) int64)
+        Voxel-index coordinates.
+    sections : tuple (r_throat (Nt,), r_pore (Np,), G_throat (Nt,), G_pore (Np,))
+        Voxels; shape factors.
+    box : ndarray of int64, shape (3,)
+
+    Returns
+    -------
+    d, lt : ndarray of float64, shape (Nt, 2)
+        Voxels.
+    """
+    centre, point, conns = geom
+    r_t, r_p, G_t, G_p = sections
+    n_t = conns.shape[0]
+    d = np.stack([np.linalg.norm(point - centre[conns[:, s]], axis=1) for s in (0, 1)], axis=1)
+    R = r_p[conns]
+    g_t = np.repeat(duct_conductance_factor(r_t, G_t)[:, None], 2, axis=1)
+    g_p = duct_conductance_factor(R, G_p[conns])
+    live = (R > r_t[:, None]) & (d > 0.0) & (g_p > g_t)
+    m = np.where(live, np.maximum(1, np.ceil(d / SAMPLE_STEP)), 0).astype(np.int64).ravel()
+    offsets = np.concatenate(([0], np.cumsum(m))).astype(np.int64)
+    area_p = R**2 / (4.0 * G_p[conns])
+    caps = np.ceil(2.0 * np.maximum(area_p, r_t[:, None] ** 2 / (4.0 * G_t[:, None]))).astype(np.int64).ravel()
+    rs, As = _law_samples(dt2, rad_tab, labels, (centre, point, conns), offsets, caps, box)
+    side = np.repeat(np.arange(2 * n_t), m)
+    rt_s, R_s = np.repeat(r_t, 2)[side], R.ravel()[side]
+    r = np.minimum(np.maximum(rs, rt_s), R_s)
+    G = np.minimum(r**2 / (4.0 * np.maximum(As, 1e-300)), CIRCLE_SHAPE_FACTOR)
+    g = np.clip(duct_conductance_factor(r, G), g_t.ravel()[side], g_p.ravel()[side])
+    step = (d.ravel() / np.maximum(m, 1))[side]
+    integral = np.bincount(side, weights=step / g, minlength=2 * n_t).reshape(n_t, 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lt = (integral - d / g_p) / (1.0 / g_t - 1.0 / g_p)
+    lt = np.where(live, np.clip(lt, 0.0, d), 0.5 * d)
+    return d, lt
