@@ -46,13 +46,13 @@ def _in_channel(dt2, labels, box, i, j, k, la, lb):
 
 
 @jit
-def _plane_area(dt2, labels, box, x, plane, start, pair, cap, work):
+def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
     """Area (voxel faces) of the channel's section through x in the plane spanned by ``plane``.
 
     The plane is sampled on the unit grid ``x + s e1 + t e2`` (integers s, t; each point stands for
-    one voxel face of the plane), each point read at its nearest voxel. From the grid point
-    ``start`` (s0, t0), the 4-connected set of points whose voxel is pore (walled map, ``box``) and
-    belongs to one of the two pores ``pair`` (la, lb) is counted, up to ``cap`` points (the count
+    one voxel face of the plane), each point read at its nearest voxel. ``seed`` = (s0, t0, la, lb):
+    from the grid point (s0, t0), the 4-connected set of points whose voxel is pore (walled map,
+    ``box``) and belongs to pore ``la`` or ``lb`` is counted, up to ``cap`` points (the count
     then returns ``cap``). ``work``: int64 scratch arrays (seen (W, W), stack (W * W, 2), trail
     (W * W, 2)), ``W`` odd, the grid centred on s = t = 0 (points beyond it are not visited);
     ``seen`` is all zero on entry and on return.
@@ -61,8 +61,7 @@ def _plane_area(dt2, labels, box, x, plane, start, pair, cap, work):
     h = seen.shape[0] // 2
     dims = dt2.shape
     e1, e2 = plane
-    la, lb = pair
-    s0, t0 = start
+    s0, t0, la, lb = seed
     i, j, k = _grid_voxel(x, e1, e2, s0, t0, dims)
     if abs(s0) > h or abs(t0) > h or not _in_channel(dt2, labels, box, i, j, k, la, lb):
         return 0
@@ -164,8 +163,9 @@ def _law_samples(dt2, rad_tab, labels, geom, offsets, caps, box):
                 rho = rad_tab[_d2(dt2, a, b, c, box)]
                 if rho == 0.0:
                     continue
-                start = _widest(dt2, x, plane, box, rho)
-                a_out[offsets[q] + j] = _plane_area(dt2, labels, box, x, plane, start, pair, caps[q], work)
+                s0, t0 = _widest(dt2, x, plane, box, rho)
+                seed = (s0, t0, pair[0], pair[1])
+                a_out[offsets[q] + j] = _plane_area(dt2, labels, box, x, plane, seed, caps[q], work)
     return r_out, a_out
 
 
