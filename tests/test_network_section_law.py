@@ -127,6 +127,7 @@ def test_end_resistance_is_sampsons_length_per_side(monkeypatch):
     conns = np.array([[0, 1]])
     rt, rp = np.array([1.5]), np.array([6.0, 6.0])
     monkeypatch.setattr(mc, "SECTION_LAW", True)
+    monkeypatch.setattr(mc, "SAMPSON_END", False)
     base = mc.measure_sections(lab, dt2, centre, point, conns, rt, rp)
     monkeypatch.setattr(mc, "SAMPSON_END", True)
     end = mc.measure_sections(lab, dt2, centre, point, conns, rt, rp)
