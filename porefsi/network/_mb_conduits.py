@@ -39,13 +39,13 @@ SUBVOXEL_SAMPLES = False
 #: section (inscribed radius and planar section area per sample, ``section_law_lengths``) rather
 #: than ``1 / r^4`` of the radius alone (``docs/extraction.md``, "Constriction length with the
 #: section's own law").
-SECTION_LAW = False
+SECTION_LAW = True
 
 #: Under the "wall" convention, add Sampson's end resistance of a constriction's mouths to its
 #: constriction length (:func:`sampson_length`, ``docs/extraction.md``): half of ``3 pi r / 8`` per
 #: mouth, where a throat side or a face cut narrows from its pore, and where a face cut opens into
 #: the reservoir.
-SAMPSON_END = False
+SAMPSON_END = True
 
 
 def sampson_length(radius):
