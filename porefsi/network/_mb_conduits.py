@@ -19,8 +19,8 @@ from porefsi.network._mb_sections import (
 from porefsi.network.network import CIRCLE_SHAPE_FACTOR
 
 __all__ = [
-    "MIN_SEGMENT", "digital_radius", "wall_radius", "merge_shallow", "conduit_lengths", "subvoxel_radii",
-    "measure_sections", "face_sections",
+    "MIN_SEGMENT", "digital_radius", "wall_radius", "sampson_length", "merge_shallow", "conduit_lengths",
+    "subvoxel_radii", "measure_sections", "face_sections",
 ]
 
 #: Smallest segment length of a conduit, in voxels (keeps every Network length > 0).
@@ -39,11 +39,24 @@ SUBVOXEL_SAMPLES = False
 #: section (inscribed radius and planar section area per sample, ``section_law_lengths``) rather
 #: than ``1 / r^4`` of the radius alone (``docs/extraction.md``, "Constriction length with the
 #: section's own law").
-SECTION_LAW = False
+SECTION_LAW = True
 
-#: Under the "wall" convention, add Sampson's end resistance of the throat's mouths to each side's
-#: constriction length (``docs/extraction.md``): ``3 pi r_t / 16`` per side with a constriction.
-END_CORRECTION = 0.0
+#: Under the "wall" convention, add Sampson's end resistance of a constriction's mouths to its
+#: constriction length (:func:`sampson_length`, ``docs/extraction.md``): half of ``3 pi r / 8`` per
+#: mouth, where a throat side or a face cut narrows from its pore, and where a face cut opens into
+#: the reservoir.
+SAMPSON_END = True
+
+
+def sampson_length(radius):
+    r"""Duct length (same unit as ``radius``) whose Poiseuille resistance is Sampson's end resistance.
+
+    A circular aperture of radius a in a thin wall has resistance :math:`3\mu / a^3` (Sampson
+    1891); a tube of length L between two reservoirs :math:`8\mu L / (\pi a^4) + 3\mu / a^3` within
+    1 % at every L / a (Dagan, Weinbaum & Pfeffer 1982): the two mouths add the Poiseuille length
+    :math:`3\pi a / 8`, each mouth half of it. Returned: that of both mouths, ``3 pi r / 8``.
+    """
+    return 3.0 * np.pi * np.asarray(radius, dtype=float) / 8.0
 
 
 def _walls(on: bool, open_axis: int = -1) -> np.ndarray:
@@ -172,7 +185,10 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, conven
     (:func:`porefsi.network._mb_sections._constriction_lengths`) makes the throat duct, the rest
     of the side the pore duct; each at least :data:`MIN_SEGMENT` voxels. ``convention`` ('wall'
     or 'digital', the paper's) is the radius table the constriction samples read; under 'wall'
-    the :data:`BOX_WALLS` faces are walls for the samples and end wall edges of the sections.
+    the :data:`BOX_WALLS` faces are walls for the samples and end wall edges of the sections, the
+    side's integral takes the local section's duct law when :data:`SECTION_LAW` is set
+    (:func:`porefsi.network._mb_section_law.section_law_lengths`), and each side narrowing from
+    its pore gains half of :func:`sampson_length` (its mouth) when :data:`SAMPSON_END` is set.
     """
     n_p = r_pore.size
     area_vec, n_faces, n_wall = _sections(labels, conns, np.int64(n_p), _walls(convention == "wall"))
@@ -188,9 +204,9 @@ def measure_sections(labels, dt2, centre, point, conns, r_throat, r_pore, conven
     else:
         d, side_lt = _lengths_kernel(convention)(dt2, rad_tab, centre, point, conns, r_throat, r_pore,
                                                  _walls(convention == "wall"))
-    if convention == "wall" and END_CORRECTION:
-        has = r_pore[conns] > r_throat[:, None]
-        side_lt = np.where(has, np.minimum(side_lt + END_CORRECTION * 3.0 * np.pi / 16.0 * r_throat[:, None], d), side_lt)
+    if convention == "wall" and SAMPSON_END:  # one mouth per side that narrows from its pore
+        mouth = 0.5 * sampson_length(r_throat)[:, None]
+        side_lt = np.where(r_pore[conns] > r_throat[:, None], np.minimum(side_lt + mouth, d), side_lt)
     ducts = np.column_stack([d[:, 0] - side_lt[:, 0], side_lt.sum(axis=1), d[:, 1] - side_lt[:, 1]])
     ducts = np.maximum(ducts, MIN_SEGMENT)
     return {
@@ -261,7 +277,9 @@ def face_sections(labels, dt2, centre, r_pore, convention="wall", pore_G=None):
     pore-centre-to-face-point line the constriction takes: the resistance-equivalent
     constriction length (:func:`porefsi.network._mb_sections._constriction_lengths`) over the
     line's length. Voxel units; ``convention`` as in :func:`measure_sections`. ``pore_G`` (Np,):
-    the pores' shape factors, for the section-law constriction length (:data:`SECTION_LAW`).
+    the pores' shape factors, for the section-law constriction length (:data:`SECTION_LAW`). With
+    :data:`SAMPSON_END` the constriction length gains half of :func:`sampson_length` for the mouth
+    into the reservoir and, where the cut is narrower than the pore, half for the mouth from it.
     """
     n_p = r_pore.size
     walled = convention == "wall"
@@ -287,6 +305,8 @@ def face_sections(labels, dt2, centre, r_pore, convention="wall", pore_G=None):
     out = {k: np.zeros((n_p, 6)) for k in ("radius", "G", "fraction")}
     out["radius"][p_idx, col] = r
     out["G"][p_idx, col] = G_f
+    if walled and SAMPSON_END:  # the mouth into the reservoir, and the one from the pore
+        lt[:, 0] += 0.5 * sampson_length(r) * (1.0 + (r_pore[p_idx] > r))
     out["fraction"][p_idx, col] = np.clip(lt[:, 0] / np.maximum(d[:, 0], 1e-300), 0.0, 1.0)
     return out
 

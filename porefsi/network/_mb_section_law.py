@@ -46,13 +46,13 @@ def _in_channel(dt2, labels, box, i, j, k, la, lb):
 
 
 @jit
-def _plane_area(dt2, labels, box, x, plane, start, pair, cap, work):
+def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
     """Area (voxel faces) of the channel's section through x in the plane spanned by ``plane``.
 
     The plane is sampled on the unit grid ``x + s e1 + t e2`` (integers s, t; each point stands for
-    one voxel face of the plane), each point read at its nearest voxel. From the grid point
-    ``start`` (s0, t0), the 4-connected set of points whose voxel is pore (walled map, ``box``) and
-    belongs to one of the two pores ``pair`` (la, lb) is counted, up to ``cap`` points (the count
+    one voxel face of the plane), each point read at its nearest voxel. ``seed`` = (s0, t0, la, lb):
+    from the grid point (s0, t0), the 4-connected set of points whose voxel is pore (walled map,
+    ``box``) and belongs to pore ``la`` or ``lb`` is counted, up to ``cap`` points (the count
     then returns ``cap``). ``work``: int64 scratch arrays (seen (W, W), stack (W * W, 2), trail
     (W * W, 2)), ``W`` odd, the grid centred on s = t = 0 (points beyond it are not visited);
     ``seen`` is all zero on entry and on return.
@@ -61,8 +61,7 @@ def _plane_area(dt2, labels, box, x, plane, start, pair, cap, work):
     h = seen.shape[0] // 2
     dims = dt2.shape
     e1, e2 = plane
-    la, lb = pair
-    s0, t0 = start
+    s0, t0, la, lb = seed
     i, j, k = _grid_voxel(x, e1, e2, s0, t0, dims)
     if abs(s0) > h or abs(t0) > h or not _in_channel(dt2, labels, box, i, j, k, la, lb):
         return 0
@@ -164,8 +163,9 @@ def _law_samples(dt2, rad_tab, labels, geom, offsets, caps, box):
                 rho = rad_tab[_d2(dt2, a, b, c, box)]
                 if rho == 0.0:
                     continue
-                start = _widest(dt2, x, plane, box, rho)
-                a_out[offsets[q] + j] = _plane_area(dt2, labels, box, x, plane, start, pair, caps[q], work)
+                s0, t0 = _widest(dt2, x, plane, box, rho)
+                seed = (s0, t0, pair[0], pair[1])
+                a_out[offsets[q] + j] = _plane_area(dt2, labels, box, x, plane, seed, caps[q], work)
     return r_out, a_out
 
 
@@ -217,15 +217,42 @@ def section_law_lengths(labels, dt2, rad_tab, geom, sections, box):
     offsets = np.concatenate(([0], np.cumsum(m))).astype(np.int64)
     area_p = R**2 / (4.0 * G_p[conns])
     caps = np.ceil(2.0 * np.maximum(area_p, r_t[:, None] ** 2 / (4.0 * G_t[:, None]))).astype(np.int64).ravel()
-    rs, As = _law_samples(dt2, rad_tab, labels, (centre, point, conns), offsets, caps, box)
-    side = np.repeat(np.arange(2 * n_t), m)
-    rt_s, R_s = np.repeat(r_t, 2)[side], R.ravel()[side]
-    r = np.minimum(np.maximum(rs, rt_s), R_s)
-    G = np.minimum(r**2 / (4.0 * np.maximum(As, 1e-300)), CIRCLE_SHAPE_FACTOR)
-    g = np.clip(duct_conductance_factor(r, G), g_t.ravel()[side], g_p.ravel()[side])
-    step = (d.ravel() / np.maximum(m, 1))[side]
-    integral = np.bincount(side, weights=step / g, minlength=2 * n_t).reshape(n_t, 2)
+    integral = np.zeros(2 * n_t)
+    lims = (r_t, R.ravel(), g_t.ravel(), g_p.ravel(), d.ravel())
+    for a, b in _chunks(offsets, CHUNK):  # throats a..b-1: bounded sample arrays (the flood stays the peak)
+        rs, As = _law_samples(dt2, rad_tab, labels, (centre, point[a:b], conns[a:b]), offsets[2 * a:2 * b + 1] -
+                              offsets[2 * a], caps[2 * a:2 * b], box)
+        integral[2 * a:2 * b] = _side_integrals(rs, As, m[2 * a:2 * b], lims, 2 * a)
+    integral = integral.reshape(n_t, 2)
     with np.errstate(divide="ignore", invalid="ignore"):
         lt = (integral - d / g_p) / (1.0 / g_t - 1.0 / g_p)
     lt = np.where(live, np.clip(lt, 0.0, d), 0.5 * d)
     return d, lt
+
+
+#: Constriction samples per batch of :func:`section_law_lengths` (bounds its arrays: ~100 B a sample).
+CHUNK = 4096
+
+
+def _chunks(offsets, size):
+    """Throat ranges [a, b) whose sides hold about ``size`` samples each (at least one throat)."""
+    n_t = (offsets.size - 1) // 2
+    ends = offsets[2::2]  # samples up to the end of throat t
+    out, a = [], 0
+    while a < n_t:
+        b = max(int(np.searchsorted(ends, offsets[2 * a] + size, side="right")), a + 1)
+        out.append((a, min(b, n_t)))
+        a = b
+    return out
+
+
+def _side_integrals(rs, As, m, lims, first):
+    """``sum (d / m) / g`` per side of one batch (sides ``first``, ``first + 1``, ...), g the clamped duct law."""
+    r_t, R, g_t, g_p, d = lims
+    side = np.repeat(np.arange(m.size), m)
+    glob = side + first
+    r = np.minimum(np.maximum(rs, r_t[glob // 2]), R[glob])
+    G = np.minimum(r**2 / (4.0 * np.maximum(As, 1e-300)), CIRCLE_SHAPE_FACTOR)
+    g = np.clip(duct_conductance_factor(r, G), g_t[glob], g_p[glob])
+    step = d[glob] / m[side]
+    return np.bincount(side, weights=step / g, minlength=m.size)
