@@ -135,7 +135,7 @@ def test_end_resistance_is_sampsons_length_per_side(monkeypatch):
     # Dagan et al.: the resistance of the throat duct is Poiseuille over the duct plus Sampson
     r = 0.7e-6
     g = duct_conductance_factor(r, 1 / (4 * math.pi))
-    np.testing.assert_allclose((3 * math.pi * r / 8) / g, 3 / r**3, rtol=1e-12)
+    np.testing.assert_allclose(mc.sampson_length(r) / g, 3 / r**3, rtol=1e-12)
 
 
 def test_sphere_lattice_throat_duct_and_refinement(law):
