@@ -26,7 +26,7 @@ __all__ = ["DrainageOptions", "RunControl", "SCHEMES", "SOLVERS", "DEFAULT_LOCAL
 #: ``'adaptive'`` (certified quasi-static batches without solves, dynamic events elsewhere).
 SCHEMES = ("exact", "adaptive")
 #: Pressure solvers (see :class:`~porefsi.flow.drainage.DrainageSimulator`).
-SOLVERS = ("auto", "lowrank", "direct", "amg", "jacobi", "split", "hybrid")
+SOLVERS = ("auto", "lowrank", "direct", "amg", "jacobi", "split", "hybrid", "selinv")
 #: Defaults of the adaptive scheme's knobs (see docs/drainage.md, "Adaptive scheme", for the measurements).
 DEFAULT_LOCAL_SOLVES = 0
 DEFAULT_HOPS = 3

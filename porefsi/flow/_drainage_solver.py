@@ -49,13 +49,14 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-from porefsi.errors import ConvergenceError, InputError
+from porefsi.errors import InputError
+from porefsi.flow import _drainage_linalg as la
+from porefsi.flow import _drainage_selinv as selinv
 
 __all__ = ["PressureSolver"]
 
-_METHODS = ("auto", "lowrank", "direct", "amg", "jacobi", "split", "hybrid", "lowrank_or_split")
+_METHODS = ("auto", "lowrank", "direct", "amg", "jacobi", "split", "hybrid", "lowrank_or_split", "selinv")
 #: Fill of the first LU (entries of L and U per unknown) above which ``'lowrank_or_split'`` solves
 #: ``'split'``: measured at the paper rate (adaptive scheme), 10k lattice 232 (low-rank 1.9 CPU s
 #: against split 3.3), 400^3 Berea network 33 and 2x2x2-tiled 211 (low-rank ~4.7x the split's
@@ -128,6 +129,7 @@ class PressureSolver:
         self.fill = None  # 'lowrank_or_split': entries of L + U per unknown of the first factorisation
         self.prefetch_fill = None  # fill of the first base, which decides whether to prefetch
         self._dpos = self._dpos_for = None  # positions of the diagonal in the (fixed) pattern, and its indices
+        self._sel = self._sel_saved = None  # method 'selinv': the base (:mod:`_drainage_selinv`), or its recipe
 
     def __setstate__(self, d):  # solvers pickled before the prefetch counters existed
         d.setdefault("prefetch", True)
@@ -140,6 +142,8 @@ class PressureSolver:
         d.setdefault("prefetch_fill", -1.0)  # pickled before the rule: prefetch as it was
         d.setdefault("_dpos", None)
         d.setdefault("_dpos_for", None)
+        d.setdefault("_sel", None)
+        d.setdefault("_sel_saved", None)
         for k in ("n_columns", "n_column_batches", "n_prefetched"):
             d.setdefault(k, 0)
         self.__dict__.update(d)
@@ -159,6 +163,10 @@ class PressureSolver:
         d["_base"] = None
         if base is not None:
             d["_saved_base"] = {k: base[k] for k in ("data", "batches", "pref", "n_pref")}
+        sel = d.pop("_sel", None)
+        d["_sel"] = None
+        if sel is not None:  # 'selinv': the base's values and its nodes in the order they joined
+            d["_sel_saved"] = (sel.data, sel.nodes[:sel.k].copy())
         return d
 
     def _diagonal(self, A):
@@ -205,6 +213,8 @@ class PressureSolver:
         lu0 = self._choose_by_fill(A) if self.method == "lowrank_or_split" else None
         if self.method == "lowrank" or (self.method == "hybrid" and frequent):
             return self._solve_lowrank(A, b, hint, lu0)
+        if self.method == "selinv":
+            return selinv.solve(self, A, b, lu0)
         d = self._diagonal(A)
         s = 1.0 / np.sqrt(d)
         As = _scaled(A, s)
@@ -538,51 +548,4 @@ def _woodbury(upd, y):
     return y - coef @ WT
 
 
-def _lu(As):
-    """Sparse LU of a scaled SPD matrix: minimum degree on ``A + A^T`` and diagonal pivots.
-
-    ``diag_pivot_thresh=0`` keeps the symmetric ordering (an SPD matrix needs no pivoting).
-    SciPy's default threshold (1.0, even with ``SymmetricMode``) swaps rows wherever an
-    off-diagonal entry of the scaled matrix outweighs the diagonal, which destroys the ordering:
-    measured on the 2x2x2-tiled Berea network (62 470 unknowns) 221 entries of L + U per unknown
-    and 4.9 CPU s per factorisation with it, 57 and 0.63 s without (base columns 12 -> 6 ms);
-    lattices (no such rows) are unchanged.
-    """
-    return spla.splu(As.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
-
-
-def _scaled(A, s):
-    return sp.csr_array((A.data * s[_rows(A)] * s[A.indices], A.indices, A.indptr), shape=A.shape)
-
-
-def _rows(A):
-    return np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
-
-
-def _pcg(A, b, x, ml, rtol, maxiter):
-    """Preconditioned CG (preconditioner: one V-cycle of ``ml``, or identity on the scaled system)."""
-    r = b - A @ x
-    bn = float(np.linalg.norm(b))
-    if bn == 0.0:
-        return np.zeros_like(b), [0.0]
-    hist = [float(np.linalg.norm(r)) / bn]
-    if hist[0] <= rtol:
-        return x, hist
-    z = ml.solve(r, maxiter=1, cycle="V", tol=1e-30) if ml is not None else r.copy()
-    p = z.copy()
-    rz = float(r @ z)
-    for _ in range(maxiter):
-        Ap = A @ p
-        alpha = rz / float(p @ Ap)
-        x = x + alpha * p
-        r = r - alpha * Ap
-        hist.append(float(np.linalg.norm(r)) / bn)
-        if hist[-1] <= rtol:
-            return x, hist
-        z = ml.solve(r, maxiter=1, cycle="V", tol=1e-30) if ml is not None else r.copy()
-        rz_new = float(r @ z)
-        p = z + (rz_new / rz) * p
-        rz = rz_new
-    raise ConvergenceError(
-        f"pressure solve did not reach rtol={rtol:g} in {maxiter} CG iterations (last {hist[-1]:.3g}); "
-        "the network may have nearly disconnected parts: try solver='direct'", history=hist)
+_lu, _scaled, _rows, _pcg = la.lu, la.scaled, la.rows, la.pcg  # the shared linear algebra (module _drainage_linalg)
