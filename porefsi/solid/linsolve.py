@@ -16,6 +16,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from porefsi.errors import ConvergenceError, InputError
+from porefsi.solid._vcycle import VCycle, relax_candidates
 
 __all__ = ["pcg", "rigid_body_modes", "AMGSolverFactory", "jacobi_solver_factory", "direct_solver_factory",
            "AdaptiveSolverFactory", "SolveInfo", "SolutionSpace", "single_thread_blas", "IndefiniteMatrixError"]
@@ -334,22 +335,22 @@ class AMGSolverFactory:
         B = self.B_full.copy()
         cons = np.setdiff1d(np.arange(self.n_full), self.free)
         B[cons] = 0.0  # constrained dofs carry no near-null-space component
+        # smoothers and coarse solve are VCycle's (pointwise Gauss-Seidel on CSR levels, forward
+        # down and backward up: symmetric, as CG needs); pyamg builds the hierarchy only
+        B = relax_candidates(Ab, B)  # pyamg's improve_candidates, with VCycle's cheaper sweeps
         self.ml = pyamg.smoothed_aggregation_solver(
             Ab, B=B, symmetry="symmetric", strength=("symmetric", {"theta": self.theta}),
             smooth=("jacobi", {"omega": 4.0 / 3.0}), max_coarse=self.max_coarse, coarse_solver="splu",
-            # forward sweep down, backward sweep up: a symmetric V-cycle at half the cost of
-            # symmetric sweeps on both legs (CG needs a symmetric preconditioner)
-            presmoother=("block_gauss_seidel", {"sweep": "forward"}),
-            postsmoother=("block_gauss_seidel", {"sweep": "backward"}),
+            improve_candidates=None, presmoother=None, postsmoother=None,
         )
-        self._M = self.ml.aspreconditioner(cycle="V")
+        self._M = VCycle(self.ml.levels, self.ml.coarse_solver)
         self.n_setups += 1
 
     def precondition(self, r: np.ndarray) -> np.ndarray:
         """Apply the AMG V-cycle to a free-dof residual ``r`` (n,)."""
         pad = np.zeros(self.n_full)
         pad[self.free] = r
-        return self._M.matvec(pad)[self.free]
+        return self._M(pad)[self.free]
 
     def __call__(self, A: sp.spmatrix):
         """Return ``solve(b) -> x`` for the free-dof SPD matrix ``A``."""
