@@ -145,11 +145,13 @@ def test_solves_pin_blas_to_one_thread():
     np.testing.assert_allclose(A @ x, np.ones(10), rtol=1e-8)
 
 
-def test_auto_factorises_a_reused_matrix_and_keeps_amg_for_changing_ones(rock_model, rng):
+def test_auto_factorises_a_reused_matrix_and_keeps_amg_for_changing_ones(rock_model, rng, monkeypatch):
     """linear_solver="auto" above 3000 dofs: a matrix that keeps serving solves (a frozen TDG M*)
-    is factorised after FACTOR_AFTER_SOLVES AMG-CG solves and the factor used from then on;
-    matrices used once each (Newton tangents) never are; nothing is factorised above
-    direct_max_dofs. Same answers to the CG tolerance either way."""
+    is factorised once the AMG-CG work spent on it reaches its predicted factorisation cost (not
+    before FACTOR_AFTER_SOLVES solves) and the factor used from then on; matrices used once each
+    (Newton tangents) never are; nothing is factorised above direct_max_dofs. Same answers to the
+    CG tolerance either way."""
+    from porefsi.solid import linsolve
     from porefsi.solid.linsolve import FACTOR_AFTER_SOLVES, AdaptiveSolverFactory
 
     m = rock_model
@@ -159,22 +161,60 @@ def test_auto_factorises_a_reused_matrix_and_keeps_amg_for_changing_ones(rock_mo
     b = rng.standard_normal(m.n_dofs)
     solve = m.make_solver(A)
     auto = m._adaptive
-    xs = [solve(b) for _ in range(FACTOR_AFTER_SOLVES)]
-    assert auto.n_factorizations == 0 and m.solver_factory.n_setups == 1
-    x_lu = solve(b)
-    assert auto.n_factorizations == 1
-    np.testing.assert_allclose(x_lu, xs[-1], rtol=0, atol=1e-6 * np.abs(x_lu).max())
+    xs, its = [], []
+    while auto.n_factorizations == 0 and len(xs) < 400:
+        xs.append(solve(b))
+        its.append(m.solver_factory.last.iterations if auto.n_factorizations == 0 else 0)
+    k = len(xs) - 1  # solves made on AMG-CG before the factor
+    assert k >= FACTOR_AFTER_SOLVES and auto.n_factorizations == 1 and m.solver_factory.n_setups == 1
+    # the switch is where the counted AMG work first reaches the predicted factorisation (ski rental)
+    per_it = auto._amg_seconds(A, 1)
+    repaid = next(j for j in range(len(its) + 1) if per_it * sum(its[:j]) >= auto.predicted["factor_s"])
+    assert k == max(FACTOR_AFTER_SOLVES, repaid)
+    x_lu = xs[-1]
+    np.testing.assert_allclose(x_lu, xs[-2], rtol=0, atol=1e-6 * np.abs(x_lu).max())
     assert np.linalg.norm(A @ x_lu - b) <= 1e-10 * np.linalg.norm(b)
     solve(b)
     assert auto.n_factorizations == 1  # the factor is reused
-    for k in range(3):  # a new matrix per solve: AMG-CG on the shared hierarchy, no factorisation
-        m.make_solver(A + sp.diags(1e-3 * (k + 1) * K.diagonal()))(b)
+    for j in range(3):  # a new matrix per solve: AMG-CG on the shared hierarchy, no factorisation
+        m.make_solver(A + sp.diags(1e-3 * (j + 1) * K.diagonal()))(b)
     assert auto.n_factorizations == 1
     capped = AdaptiveSolverFactory(m.solver_factory, factor_after=0, direct_max_dofs=m.n_dofs - 1)
     s = capped(A)
     s(b)
     s(b)
     assert capped.n_factorizations == 0
+    # a factorisation predicted dearer than any run's AMG work is never made; a free one at factor_after
+    monkeypatch.setattr(linsolve, "LU_SECONDS_PER_FLOP", 1e3)
+    dear_rule = AdaptiveSolverFactory(m.solver_factory, factor_after=2)
+    dear = dear_rule(A)
+    for _ in range(6):
+        dear(b)
+    assert dear_rule.n_factorizations == 0 and dear_rule.predicted["factor_s"] > dear_rule.predicted["amg_s"]
+    monkeypatch.setattr(linsolve, "LU_SECONDS_PER_FLOP", 0.0)
+    cheap_rule = AdaptiveSolverFactory(m.solver_factory, factor_after=2)
+    cheap = cheap_rule(A)
+    for _ in range(3):
+        cheap(b)
+    assert cheap_rule.n_factorizations == 1 and cheap_rule.predicted["factor_s"] == 0.0
+
+
+def test_factor_work_prediction_follows_superlu(rock_model):
+    """lu_factor_flops (a node-level analysis, no factorisation of A) is within 0.6-1.6x of the sum of
+    squared column counts of SuperLU's own factor of the rock's tangent, and a stiffer coupling of
+    the same graph (a denser node graph: more fill) is predicted dearer."""
+    import scipy.sparse.linalg as spla
+
+    from porefsi.solid.footprint import lu_factor_flops
+
+    m = rock_model
+    K = sp.csc_matrix(m.tangent(np.zeros(m.n_dofs), 1.0))
+    lu = spla.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    true = float(np.sum(np.diff(sp.csc_matrix(lu.L).indptr).astype(float) ** 2))
+    pred = lu_factor_flops(K, m.free)
+    assert 0.6 * true <= pred <= 1.6 * true
+    K2 = sp.csr_matrix(K @ K)  # the squared operator's graph: every node joined to its second neighbours
+    assert lu_factor_flops(K2, m.free) > 2 * pred
 
 
 def test_recycled_amg_solves_match_the_direct_solve_and_skip_known_loads(rock_model, rng):

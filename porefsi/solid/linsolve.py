@@ -16,6 +16,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from porefsi.errors import ConvergenceError, InputError
+from porefsi.solid._recycle import SolutionSpace
+from porefsi.solid._vcycle import VCycle, relax_candidates
+from porefsi.solid.footprint import AMG_SECONDS_PER_WORK, LU_SECONDS_PER_FLOP, amg_iteration_work, lu_factor_flops
 
 __all__ = ["pcg", "rigid_body_modes", "AMGSolverFactory", "jacobi_solver_factory", "direct_solver_factory",
            "AdaptiveSolverFactory", "SolveInfo", "SolutionSpace", "single_thread_blas", "IndefiniteMatrixError"]
@@ -174,55 +177,6 @@ STRENGTH_THETA = 0.02
 RECYCLE_VECTORS = 0
 
 
-class SolutionSpace:
-    r"""The span of earlier solutions of :math:`A x = b`, A-orthonormal: a start for the next solve.
-
-    For a right-hand side ``b`` the guess :math:`x_0 = W W^T b` (columns of ``W`` A-orthonormal) is the
-    A-orthogonal projection of :math:`A^{-1} b` onto the span, so the initial error is A-orthogonal
-    to every stored solution; a ``b`` that combines earlier right-hand sides is solved exactly by it
-    (Fischer 1998, projection of successive right-hand sides). A run's modified Newton solves with
-    one frozen tangent over all exchange steps, and their loads grow in few patterns.
-
-    Parameters
-    ----------
-    A : sparse matrix, shape (n, n)
-        The SPD matrix of every solve.
-    capacity : int
-        Most vectors kept (the oldest is dropped first; 0 keeps none).
-    """
-
-    def __init__(self, A, capacity: int):
-        self.A, self.capacity = A, int(capacity)
-        self.W: list[np.ndarray] = []  # A-orthonormal directions
-        self.AW: list[np.ndarray] = []  # A @ W
-
-    def guess(self, b: np.ndarray) -> np.ndarray | None:
-        """``W W^T b`` (n,), or None while the space is empty."""
-        if not self.W:
-            return None
-        W = np.column_stack(self.W)
-        return W @ (W.T @ np.asarray(b, dtype=float))
-
-    def add(self, x: np.ndarray) -> None:
-        """Add the direction of solution ``x`` (n,), A-orthogonalised twice (no-op if already in the span)."""
-        if self.capacity == 0:
-            return
-        v = np.array(x, dtype=float)
-        xnorm = np.sqrt(abs(v @ (self.A @ v)))
-        for _ in range(2):  # classical Gram-Schmidt, repeated: orthogonal to rounding
-            for w, aw in zip(self.W, self.AW, strict=True):
-                v -= (aw @ v) * w
-        Av = self.A @ v
-        nv2 = float(v @ Av)
-        if not nv2 > (1e-10 * xnorm) ** 2:  # nothing new (or not SPD along v)
-            return
-        nv = np.sqrt(nv2)
-        self.W.append(v / nv)
-        self.AW.append(Av / nv)
-        if len(self.W) > self.capacity:
-            del self.W[0], self.AW[0]
-
-
 class AMGSolverFactory:
     """CG preconditioned by pyamg smoothed aggregation with rigid-body modes, with reuse.
 
@@ -334,22 +288,22 @@ class AMGSolverFactory:
         B = self.B_full.copy()
         cons = np.setdiff1d(np.arange(self.n_full), self.free)
         B[cons] = 0.0  # constrained dofs carry no near-null-space component
+        # smoothers and coarse solve are VCycle's (pointwise Gauss-Seidel on CSR levels, forward
+        # down and backward up: symmetric, as CG needs); pyamg builds the hierarchy only
+        B = relax_candidates(Ab, B)  # pyamg's improve_candidates, with VCycle's cheaper sweeps
         self.ml = pyamg.smoothed_aggregation_solver(
             Ab, B=B, symmetry="symmetric", strength=("symmetric", {"theta": self.theta}),
             smooth=("jacobi", {"omega": 4.0 / 3.0}), max_coarse=self.max_coarse, coarse_solver="splu",
-            # forward sweep down, backward sweep up: a symmetric V-cycle at half the cost of
-            # symmetric sweeps on both legs (CG needs a symmetric preconditioner)
-            presmoother=("block_gauss_seidel", {"sweep": "forward"}),
-            postsmoother=("block_gauss_seidel", {"sweep": "backward"}),
+            improve_candidates=None, presmoother=None, postsmoother=None,
         )
-        self._M = self.ml.aspreconditioner(cycle="V")
+        self._M = VCycle(self.ml.levels, self.ml.coarse_solver)
         self.n_setups += 1
 
     def precondition(self, r: np.ndarray) -> np.ndarray:
         """Apply the AMG V-cycle to a free-dof residual ``r`` (n,)."""
         pad = np.zeros(self.n_full)
         pad[self.free] = r
-        return self._M.matvec(pad)[self.free]
+        return self._M(pad)[self.free]
 
     def __call__(self, A: sp.spmatrix):
         """Return ``solve(b) -> x`` for the free-dof SPD matrix ``A``."""
@@ -438,10 +392,11 @@ def direct_solver_factory(symmetric: bool = True):
     return make
 
 
-#: "auto" factorises a matrix once it has served this many AMG-CG solves. Ski-rental rule: factor
-#: after spending about one factorisation's time on iterative solves. Measured on the sample
-#: (M* = M + alpha*^2 dt^2 K, dt = 1e-4 s): at 39,871 dofs LU factor 4.3 s, AMG-CG solve 0.22 s
-#: (ratio 20), LU solve 0.026 s; at 77,174 dofs 13.2 s, 0.50 s (ratio 26), 0.07 s.
+#: "auto" considers factorising a matrix only once it has served this many AMG-CG solves (and then
+#: when the AMG-CG work spent on it reaches the predicted factorisation: AdaptiveSolverFactory). So a
+#: matrix solved fewer times (a 10-s quasi-static coupled run's frozen tangent: 17 solves) never pays
+#: for the prediction. Was the whole rule until 2026-12-02 (measured then at 40k dofs: factor 4.3 s,
+#: pyamg's AMG-CG solve 0.22 s; docs/solid.md section 5).
 FACTOR_AFTER_SOLVES = 20
 #: Largest system "auto" factorises: measured 77,174 dofs factor in 11-13 s with 2.1 GiB process
 #: peak (two factors alive); fill grows like n^(4/3), so ~1.8e5 dofs (coarsen 3) would need ~4+ GiB.
@@ -449,22 +404,29 @@ DIRECT_MAX_DOFS = 100_000
 
 
 class AdaptiveSolverFactory:
-    r"""The "auto" policy: AMG-CG for a matrix's first solves, a sparse LU once it proves reused.
+    r"""The "auto" policy: AMG-CG for a matrix's first solves, a sparse LU once its predicted cost is repaid.
 
     A matrix that changes every time (Newton tangents, a TDG stepper refreshing its tangent each
-    step) is solved by AMG-CG with the shared, reused hierarchy: a factorisation per matrix
-    costs ~20 AMG-CG solves. A matrix that keeps serving solves (the frozen
-    :math:`M^* = M + \alpha^{*2}\Delta t^2 K` of a TDG loop, a frozen static tangent) is
-    factorised after :data:`FACTOR_AFTER_SOLVES` solves and the factor used from then on (a
-    solve 8x cheaper than AMG-CG at 40k dofs), if it has at most :data:`DIRECT_MAX_DOFS` dofs.
-    The switch depends on solve counts only, so runs are reproducible.
+    step) is solved by AMG-CG with the shared, reused hierarchy. A matrix that keeps serving
+    solves (the frozen :math:`M^* = M + \alpha^{*2}\Delta t^2 K` of a TDG loop, a frozen static
+    tangent) is factorised once the AMG-CG work spent on it has reached the predicted cost of its
+    factorisation (ski rental: never more than twice the cheaper choice in hindsight), but not
+    before :data:`FACTOR_AFTER_SOLVES` solves, and only up to :data:`DIRECT_MAX_DOFS` dofs. The
+    factorisation's cost is predicted before it is made, from a node-level analysis of the
+    matrix's fill (:func:`~porefsi.solid.footprint.lu_factor_flops`, made once, at the
+    :data:`FACTOR_AFTER_SOLVES`-th solve: a run that solves fewer times never pays for it); the
+    AMG-CG work is counted (iterations times the hierarchy's nonzeros), not timed, so runs are
+    reproducible. Measured on the 120³ meshes (2026-12-02): the Berea crop's graded mesh
+    (37,379 dofs, 699 factor nonzeros per dof) repays its factor after ~40 of its coupled
+    run's solves, the sample's graded mesh (31,438 dofs, 471 per dof) after ~24, so the 17 solves
+    of a 10-s quasi-static run stay on AMG-CG on both.
 
     Parameters
     ----------
     amg : AMGSolverFactory
         The shared AMG factory.
     factor_after : int
-        Solves on one matrix before it is factorised.
+        Fewest solves on one matrix before it may be factorised.
     direct_max_dofs : int
         No factorisation above this many dofs (memory).
 
@@ -472,6 +434,9 @@ class AdaptiveSolverFactory:
     ----------
     n_factorizations : int
         Factorisations made so far.
+    predicted : dict
+        Of the last matrix assessed: ``factor_s`` (predicted factorisation, s) and ``amg_s``
+        (AMG-CG work spent on it when assessed, s).
     """
 
     def __init__(self, amg: AMGSolverFactory, *, factor_after: int = FACTOR_AFTER_SOLVES,
@@ -481,15 +446,32 @@ class AdaptiveSolverFactory:
         self.amg = amg
         self.factor_after, self.direct_max_dofs = int(factor_after), int(direct_max_dofs)
         self.n_factorizations = 0
+        self.predicted: dict = {}
+
+    def _amg_seconds(self, A, iterations: int) -> float:
+        """Predicted seconds of ``iterations`` AMG-CG iterations on ``A`` with the current hierarchy."""
+        levels = [lv.A.nnz for lv in self.amg.ml.levels]
+        return AMG_SECONDS_PER_WORK * iterations * amg_iteration_work(levels, A.nnz)
 
     def __call__(self, A: sp.spmatrix):
         """Return ``solve(b) -> x`` for the free-dof SPD matrix ``A``."""
         A = sp.csr_matrix(A)
         can_factor = A.shape[0] <= self.direct_max_dofs
-        state = {"solves": 0, "lu": None, "amg": None}
+        state = {"solves": 0, "lu": None, "amg": None, "iterations": 0, "factor_s": None}
+
+        def factor_now() -> bool:
+            if state["lu"] is not None or not can_factor or state["solves"] < self.factor_after:
+                return False
+            if state["amg"] is None:  # factor_after = 0: no AMG-CG tried, factorise at once
+                return True
+            if state["factor_s"] is None:
+                state["factor_s"] = LU_SECONDS_PER_FLOP * lu_factor_flops(A, self.amg.free)
+            spent = self._amg_seconds(A, state["iterations"])
+            self.predicted = {"factor_s": state["factor_s"], "amg_s": spent}
+            return spent >= state["factor_s"]
 
         def solve(b: np.ndarray, rtol: float | None = None) -> np.ndarray:
-            if state["lu"] is None and can_factor and state["solves"] >= self.factor_after:
+            if factor_now():
                 state["lu"] = direct_solver_factory()(A)
                 self.n_factorizations += 1
             state["solves"] += 1
@@ -497,7 +479,9 @@ class AdaptiveSolverFactory:
                 return state["lu"](b)
             if state["amg"] is None:
                 state["amg"] = self.amg(A)
-            return state["amg"](b, rtol)
+            x = state["amg"](b, rtol)
+            state["iterations"] += self.amg.last.iterations
+            return x
 
         return solve
 
