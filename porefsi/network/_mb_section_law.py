@@ -216,7 +216,7 @@ def section_law_lengths(labels, dt2, rad_tab, geom, sections, box):
     m = np.where(live, np.maximum(1, np.ceil(d / SAMPLE_STEP)), 0).astype(np.int64).ravel()
     offsets = np.concatenate(([0], np.cumsum(m))).astype(np.int64)
     area_p = R**2 / (4.0 * G_p[conns])
-    caps = np.ceil(2.0 * np.maximum(area_p, r_t[:, None] ** 2 / (4.0 * G_t[:, None]))).astype(np.int64).ravel()
+    caps = np.ceil(AREA_CAP * np.maximum(area_p, r_t[:, None] ** 2 / (4.0 * G_t[:, None]))).astype(np.int64).ravel()
     integral = np.zeros(2 * n_t)
     lims = (r_t, R.ravel(), g_t.ravel(), g_p.ravel(), d.ravel())
     for a, b in _chunks(offsets, CHUNK):  # throats a..b-1: bounded sample arrays (the flood stays the peak)
@@ -229,6 +229,11 @@ def section_law_lengths(labels, dt2, rad_tab, geom, sections, box):
     lt = np.where(live, np.clip(lt, 0.0, d), 0.5 * d)
     return d, lt
 
+
+#: A plane flood stops at this many times the larger of the pore's and the throat's section area (the
+#: samples' conductance is clamped at the pore duct's): measured, 4x gives the same k as 2x on four
+#: images, 1x 0.4-1.7 % less.
+AREA_CAP = 2.0
 
 #: Constriction samples per batch of :func:`section_law_lengths` (bounds its arrays: ~100 B a sample).
 CHUNK = 4096
