@@ -165,8 +165,8 @@ class PressureSolver:
             d["_saved_base"] = {k: base[k] for k in ("data", "batches", "pref", "n_pref")}
         sel = d.pop("_sel", None)
         d["_sel"] = None
-        if sel is not None:  # 'selinv': the base's values and its nodes in the order they joined
-            d["_sel_saved"] = (sel.data, sel.nodes[:sel.k].copy())
+        if sel is not None:  # 'selinv': the base's values and its nodes, batch by batch
+            d["_sel_saved"] = (sel.data, [b.copy() for b in sel.batches])
         return d
 
     def _diagonal(self, A):
