@@ -112,7 +112,7 @@ def test_adaptive_run_carried_onto_a_deformed_network_keeps_the_exact_events(net
 @pytest.mark.parametrize("limit", [0.0, 1e9])
 def test_lowrank_or_split_chooses_by_the_first_factors_fill_and_keeps_the_exact_events(net, monkeypatch, limit):
     """The adaptive scheme's solver above ADAPTIVE_SPLIT_ABOVE pores: 'split' where the first LU
-    is dense (limit 0: always), else 'lowrank' from that factor; either way the run is the exact
+    is dense (limit 0: always), else 'selinv' from that factor; either way the run is the exact
     scheme's to the solvers' tolerance (certified batches, tie tolerance 0)."""
     from porefsi.flow import _drainage_solver as ds
 
@@ -126,5 +126,5 @@ def test_lowrank_or_split_chooses_by_the_first_factors_fill_and_keeps_the_exact_
     while np.isnan(sim.breakthrough_time):
         sim._engine.step(np.inf)
     so = sim._engine.solver
-    assert so.method == ("split" if limit == 0.0 else "lowrank") and so.fill > 1.0
+    assert so.method == ("split" if limit == 0.0 else "selinv") and so.fill > 1.0
     _same_events(ref.invasion_time, sim.invasion_time())

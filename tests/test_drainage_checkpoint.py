@@ -52,7 +52,7 @@ def case():
     return net, fl, rate, t_end
 
 
-@pytest.mark.parametrize("solver", ["direct", "lowrank"])
+@pytest.mark.parametrize("solver", ["direct", "lowrank", "selinv"])
 def test_resumed_run_equals_uninterrupted_bit_for_bit(case, tmp_path, solver):
     net, fl, rate, t_end = case
     kw = dict(rate=rate, t_end=t_end, times=[0.3 * t_end, 0.6 * t_end], solver=solver)
@@ -65,6 +65,8 @@ def test_resumed_run_equals_uninterrupted_bit_for_bit(case, tmp_path, solver):
     assert so.method == solver and saved["sim"]._engine.n_events == 120
     if solver == "lowrank":  # the base factorisation travels as its recipe (values + column batches)
         assert so._saved_base is not None and len(so._saved_base["batches"]) > 0
+    if solver == "selinv":  # its base travels as the base's values and the node batches
+        assert so._sel is None and so._sel_saved is not None and len(so._sel_saved[1]) > 0
     res = simulate_drainage(net, fl, checkpoint=path, resume=True, **kw)
     for k, v in ref.history.items():
         np.testing.assert_array_equal(res.history[k], v, err_msg=k)

@@ -54,7 +54,7 @@ def test_triangular_kernels_match_dense_twins(factored):
     si.backward_upper(base.Rp, base.Ri, base.Rx, base.Ud, w, n)
     np.testing.assert_allclose(U @ w, y, rtol=0, atol=1e-10 * np.abs(y).max())
     h = y.copy()
-    si.forward_upper_transposed(base.Rp, base.Ri, base.Rx, base.Ud, h, 0)
+    si.forward_upper_transposed(base.Rp, base.Ri, base.Rx, base.Ud, h, 0, n)
     np.testing.assert_allclose(U.T @ h, y, rtol=0, atol=1e-10 * np.abs(y).max())
     # the full solve with the dense block against the factor's own solve
     x = base.solve(y, np.array([], dtype=np.int64), None, None)
@@ -71,7 +71,10 @@ def test_selected_entries_and_woodbury_solve_match_dense_inverse(factored):
     base.add(nodes)  # the first five again are skipped
     assert base.k == 12
     inv = np.linalg.inv(As.toarray())
-    np.testing.assert_allclose(base.W[:12, :12], inv[np.ix_(nodes, nodes)], rtol=0, atol=1e-12 * np.abs(inv).max())
+    kept = base.nodes[:12]
+    np.testing.assert_array_equal(np.sort(kept), np.sort(nodes))
+    np.testing.assert_array_equal(base.slot_of[kept], np.arange(12))
+    np.testing.assert_allclose(base.W[:12, :12], inv[np.ix_(kept, kept)], rtol=0, atol=1e-12 * np.abs(inv).max())
     # a symmetric change on rows S: A = A0 + E_S D E_S^T
     S = np.sort(nodes[:6])
     Dd = np.diag(rng.uniform(0.1, 1.0, S.size))

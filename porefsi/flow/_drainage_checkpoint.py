@@ -41,7 +41,7 @@ _FIX = "run again without --resume to start over (with --overwrite on the comman
 _ENGINE_DERIVED = frozenset({"g", "solver", "rate", "p_fixed", "skip_solves", "max_iter", "_nbr_res", "_diag_ref",
                              "_ptol", "_indptr"})
 #: Solver attributes that are factorisations (rebuilt) or the base (stored as its recipe).
-_SOLVER_DERIVED = frozenset({"_ml", "_ml_iters", "_base", "_saved_base", "_dpos", "_dpos_for"})
+_SOLVER_DERIVED = frozenset({"_ml", "_ml_iters", "_base", "_saved_base", "_dpos", "_dpos_for", "_sel", "_sel_saved"})
 #: Every attribute of a DrainageSimulator this module knows how to store.
 _SIM_ATTRS = frozenset({"net", "fluids", "axis", "rate", "inlet_pressure_bc", "graph", "_opts", "_engine",
                         "last_remap", "options"})
@@ -110,6 +110,11 @@ def simulator_state(sim, prefix: str, arrays: dict, meta: dict) -> None:
             "data": base["data"], "pref": base["pref"], "n_pref": base["n_pref"],
             "batch_sizes": np.array([b.size for b in batches], dtype=np.int64),
             "batch_nodes": np.concatenate(batches) if batches else np.zeros(0, dtype=np.int64)}, arrays, meta)
+    sel = (s._sel.data, s._sel.batches) if getattr(s, "_sel", None) is not None else getattr(s, "_sel_saved", None)
+    if sel is not None:  # solver 'selinv': the base's values and its node batches
+        plain.put_fields(f"{prefix}.selinv", {
+            "data": sel[0], "batch_sizes": np.array([b.size for b in sel[1]], dtype=np.int64),
+            "batch_nodes": np.concatenate(sel[1]) if sel[1] else np.zeros(0, dtype=np.int64)}, arrays, meta)
 
 
 def simulator_from_state(prefix: str, arrays: dict, meta: dict):
@@ -165,6 +170,13 @@ def simulator_from_state(prefix: str, arrays: dict, meta: dict):
             raise ValueError("solver base batches do not add up")
         s._saved_base = {"data": b["data"], "pref": b["pref"], "n_pref": b["n_pref"],
                          "batches": [np.array(x) for x in np.split(nodes, np.cumsum(sizes)[:-1])] if sizes.size else []}
+    s._sel = s._sel_saved = None
+    if f"{prefix}.selinv" in meta:
+        b = plain.get_fields(f"{prefix}.selinv", arrays, meta)
+        sizes, nodes = b["batch_sizes"], b["batch_nodes"]
+        if int(sizes.sum()) != nodes.size:
+            raise ValueError("solver selinv batches do not add up")
+        s._sel_saved = (b["data"], [np.array(x) for x in np.split(nodes, np.cumsum(sizes)[:-1])] if sizes.size else [])
     return sim
 
 

@@ -77,10 +77,13 @@ def backward_upper(Rp, Ri, Rx, Ud, y, j0):
 
 
 @jit
-def forward_upper_transposed(Rp, Ri, Rx, Ud, y, start):
-    """Solve ``U^T h := h`` in place (``U`` by rows, CSR ``Rp, Ri, Rx``; diagonal ``Ud``), zeros below ``start``."""
-    n = y.shape[0]
-    for j in range(start, n):
+def forward_upper_transposed(Rp, Ri, Rx, Ud, y, start, end):
+    """Rows ``start..end-1`` of ``U^T h = y`` in place (``U`` by rows, CSR, strictly upper; diagonal ``Ud``).
+
+    ``y`` is zero below ``start``; ``end = n`` solves the whole system (sparse-aware, as
+    :func:`forward_unit_lower`).
+    """
+    for j in range(start, end):
         if y[j] != 0.0:
             hj = y[j] / Ud[j]
             y[j] = hj
@@ -110,6 +113,10 @@ def _subtract(y, ptr, idx, val, slots, coef):
         if c != 0.0:
             for p in range(ptr[t], ptr[t + 1]):
                 y[idx[p]] -= c * val[p]
+
+
+#: Least density of the trailing block of the factors kept dense (see :meth:`SelectedInverse._split_block`).
+_BLOCK_DENSITY = 0.9
 
 
 class _Pool:
@@ -165,21 +172,27 @@ class SelectedInverse:
         self.g = _Pool(cap)
         self.h = _Pool(cap)
         self.k = 0
+        self.batches: list[np.ndarray] = []  # the nodes added, batch by batch (a restored base repeats them)
         self.work = np.zeros(n)
         self._split_block(L, U)
+        self.L3 = (self.Lp, self.Li, self.Lx)
+        self.R4 = (self.Rp, self.Ri, self.Rx, self.Ud)
+        self.GT = np.zeros((cap, n - self.j0))  # trailing-block parts of g and h, one row per slot
+        self.HT = np.zeros((cap, n - self.j0))
 
     def _split_block(self, L, U) -> None:
-        """The trailing block of the factors where ``L`` is at least half full, kept dense (full solves).
+        """The largest trailing block of the factors that is :data:`_BLOCK_DENSITY` full, kept dense.
 
-        On the tiled Berea network the last ~2000 of 62 470 columns (the top separators of the
-        minimum-degree ordering) hold 61 % of the entries of ``L``; dense triangular solves do them
-        several times faster than the column loop. ``j0 = n`` (no block) below 64 columns.
+        On the tiled Berea network the last ~1000 of 62 470 columns (the top separators of the
+        minimum-degree ordering) are 94 % full and hold 28 % of the entries of ``L``; dense
+        triangular solves do them several times faster than the column loop (a half-full block of
+        2060 columns was slower: 34 MB read per solve). ``j0 = n`` (no block) below 64 columns.
         """
         n = self.n
         cnt = np.diff(L.indptr) - 1  # entries below the diagonal per column: all in the block from their column on
         m = np.arange(1, n + 1)
         inside = np.cumsum(cnt[::-1])  # entries of the trailing m x m block, m = 1..n
-        dense = np.flatnonzero(inside >= 0.25 * m * (m - 1))
+        dense = np.flatnonzero(inside >= 0.5 * _BLOCK_DENSITY * m * (m - 1))
         mb = int(m[dense[-1]]) if dense.size else 0
         self.j0 = j0 = n - mb if mb >= 64 else n
         self.LTT = L[j0:, j0:].toarray()
@@ -189,41 +202,60 @@ class SelectedInverse:
     def cap(self) -> int:
         return self.nodes.size
 
-    def _sparse(self, y, start):
-        idx = start + np.flatnonzero(y[start:])
+    def _sparse(self, y, start, end):
+        idx = start + np.flatnonzero(y[start:end])
         val = y[idx]
         y[idx] = 0.0
         return idx, val
 
     def add(self, nodes: np.ndarray) -> None:
-        """Keep ``g``, ``h`` and the entries of ``A0^-1`` against all kept nodes for each new node, in order."""
-        y = self.work
-        for v in nodes.tolist():
-            if self.slot_of[v] >= 0:
-                continue
+        """Keep ``g``, ``h`` and the entries of ``A0^-1`` against all kept nodes for the new ones among ``nodes``.
+
+        Each vector is kept in two parts: its entries above the trailing block (sparse, in the
+        pools) and its trailing-block part (dense columns of ``GT``, ``HT``), solved for all new
+        nodes at once by LAPACK. ``W[i, j] = h_i . g_j`` is the sum of the two parts' products.
+        """
+        new = np.unique(nodes[self.slot_of[nodes] < 0])  # sorted: the same slots whatever the order asked
+        if new.size == 0:
+            return
+        self.batches.append(new)
+        y, j0, n = self.work, self.j0, self.n
+        k0 = self.k
+        for v in new.tolist():
             k = self.k
-            r = int(self.pr[v])
-            y[r] = 1.0
-            forward_unit_lower(self.Lp, self.Li, self.Lx, y, r, self.n)
-            self.g.append(*self._sparse(y, r))
-            c = int(self.pc[v])
-            y[c] = 1.0
-            forward_upper_transposed(self.Rp, self.Ri, self.Rx, self.Ud, y, c)
-            self.h.append(*self._sparse(y, c))
+            for pool, block, start, kernel, lin in ((self.g, self.GT, int(self.pr[v]), forward_unit_lower, self.L3),
+                                                    (self.h, self.HT, int(self.pc[v]), forward_upper_transposed,
+                                                     self.R4)):
+                y[start] = 1.0
+                kernel(*lin, y, start, j0)
+                pool.append(*self._sparse(y, start, j0))
+                block[k] = y[j0:]
+                y[j0:] = 0.0
             self.slot_of[v] = k
             self.nodes[k] = v
             self.k = k + 1
-            slots = np.arange(k + 1, dtype=np.int64)
+        k1 = self.k
+        if j0 < n:
+            self.GT[k0:k1] = sla.solve_triangular(self.LTT, self.GT[k0:k1].T, lower=True, unit_diagonal=True,
+                                                  check_finite=False).T
+            self.HT[k0:k1] = sla.solve_triangular(self.UTT, self.HT[k0:k1].T, trans="T", lower=False,
+                                                  check_finite=False).T
+        W = self.W
+        W[:k1, k0:k1] = self.HT[:k1] @ self.GT[k0:k1].T  # trailing-block parts
+        W[k0:k1, :k0] = self.HT[k0:k1] @ self.GT[:k0].T
+        slots = np.arange(k1, dtype=np.int64)
+        col = np.empty(k1)
+        for k in range(k0, k1):  # the sparse parts above the block
             gi, gv = self.g.idx[self.g.ptr[k]:self.g.ptr[k + 1]], self.g.val[self.g.ptr[k]:self.g.ptr[k + 1]]
-            y[gi] = gv  # column: W[t, v] = h_t . g_v
-            _dots(y, self.h.ptr, self.h.idx, self.h.val, slots, self.W[:k + 1, k])
+            y[gi] = gv  # column: W[t, k] += h_t . g_k
+            _dots(y, self.h.ptr, self.h.idx, self.h.val, slots, col)
+            W[:k1, k] += col
             y[gi] = 0.0
             hi, hv = self.h.idx[self.h.ptr[k]:self.h.ptr[k + 1]], self.h.val[self.h.ptr[k]:self.h.ptr[k + 1]]
-            y[hi] = hv  # row: W[v, t] = h_v . g_t
-            row = np.empty(k + 1)
-            _dots(y, self.g.ptr, self.g.idx, self.g.val, slots, row)
+            y[hi] = hv  # row: W[k, t] += h_k . g_t (t < k0: the new columns got theirs above)
+            _dots(y, self.g.ptr, self.g.idx, self.g.val, slots[:k0], col[:k0])
+            W[k, :k0] += col[:k0]
             y[hi] = 0.0
-            self.W[k, :k + 1] = row
 
     def solve(self, bs: np.ndarray, S: np.ndarray, D, lu_m) -> np.ndarray:
         """``(A0 + E_S D E_S^T)^-1 bs`` (scaled system) given the LU ``lu_m`` of ``I + W_SS D`` (None: ``S`` empty)."""
@@ -237,9 +269,15 @@ class SelectedInverse:
         if lu_m is not None:
             cS = self.slot_of[S]
             yS = np.empty(S.size)
-            _dots(y, self.h.ptr, self.h.idx, self.h.val, cS, yS)  # (A0^-1 bs)_S
+            _dots(y, self.h.ptr, self.h.idx, self.h.val, cS, yS)  # (A0^-1 bs)_S: parts above the block
+            k = self.k
+            yS += (self.HT[:k] @ y[j0:])[cS]  # and in it (all kept rows: contiguous, no gather)
             z = sla.lu_solve(lu_m, yS, check_finite=False)
-            _subtract(y, self.g.ptr, self.g.idx, self.g.val, cS, np.asarray(D @ z, dtype=float))
+            c = np.asarray(D @ z, dtype=float)
+            _subtract(y, self.g.ptr, self.g.idx, self.g.val, cS, c)
+            coef = np.zeros(k)
+            coef[cS] = c
+            y[j0:] -= coef @ self.GT[:k]
         if j0 < self.n:
             y[j0:] = sla.solve_triangular(self.UTT, y[j0:], lower=False, check_finite=False)
         backward_upper(self.Rp, self.Ri, self.Rx, self.Ud, y, j0)
@@ -265,12 +303,13 @@ def solve(ps, A, b: np.ndarray, lu0=None) -> np.ndarray:
     """
     fresh = False
     if ps._sel is None and getattr(ps, "_sel_saved", None) is not None:  # unpickled: the same base again
-        data, nodes = ps._sel_saved
+        data, batches = ps._sel_saved
         ps._sel_saved = None
         n_setups, seconds = ps.n_setups, ps.seconds_setup
         _new_base(ps, sp.csr_array((data, A.indices, A.indptr), shape=A.shape))
         ps.n_setups, ps.seconds_setup = n_setups, seconds
-        ps._sel.add(nodes)
+        for nodes in batches:  # the same batches: the same arithmetic as the uninterrupted run
+            ps._sel.add(nodes)
     if ps._sel is None:
         _new_base(ps, A, lu0)
         fresh = True

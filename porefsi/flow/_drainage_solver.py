@@ -43,6 +43,7 @@ References
 from __future__ import annotations
 
 import os
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -165,8 +166,8 @@ class PressureSolver:
             d["_saved_base"] = {k: base[k] for k in ("data", "batches", "pref", "n_pref")}
         sel = d.pop("_sel", None)
         d["_sel"] = None
-        if sel is not None:  # 'selinv': the base's values and its nodes in the order they joined
-            d["_sel_saved"] = (sel.data, sel.nodes[:sel.k].copy())
+        if sel is not None:  # 'selinv': the base's values and its nodes, batch by batch
+            d["_sel_saved"] = (sel.data, [b.copy() for b in sel.batches])
         return d
 
     def _diagonal(self, A):
@@ -319,15 +320,17 @@ class PressureSolver:
     def _choose_by_fill(self, A):
         """Method ``'lowrank_or_split'``: factorise ``A`` once and choose by the factor's fill.
 
-        ``'lowrank'`` (returning the factor: the first base) when the fill is at most
+        ``'selinv'`` (returning the factor: the first base) when the fill is at most
         :data:`_SPLIT_FILL` entries per unknown, else ``'split'`` (returning None: that
-        factorisation is the price of the choice).
+        factorisation is the price of the choice). ``'selinv'`` rather than ``'lowrank'`` since
+        2026-12-02 (tiled Berea at Ca 1e-5, the first 194 fills: 15-19 CPU s against 23.5;
+        docs/drainage.md).
         """
         t0 = time.perf_counter()
         lu = _lu(_scaled(A, 1.0 / np.sqrt(self._diagonal(A))))
         self.fill = float(lu.L.nnz + lu.U.nnz) / A.shape[0]
         if self.fill <= _SPLIT_FILL:
-            self.method = "lowrank"
+            self.method = "selinv"
             return lu
         self.method = "split"
         self.n_setups += 1
@@ -460,6 +463,14 @@ class PressureSolver:
         The hierarchy's recipe (the values of the matrix it was built from, ``_amg_data``) is kept,
         so a solver restored from a checkpoint rebuilds the very same hierarchy; pyamg's spectral
         radius estimate starts from a random vector, drawn here from a fixed seed.
+
+        Why NumPy's global generator and not a local ``Generator``: pyamg 5.4 draws that vector with
+        ``np.random.rand`` inside ``approximate_spectral_radius``, which
+        ``smoothed_aggregation_solver`` calls on matrices it builds itself (the filtered
+        ``D^-1 S`` of the prolongator smoother), with no ``rng``, seed or initial-guess parameter
+        to pass through (checked in pyamg/aggregation/smooth.py and pyamg/util/linalg.py). So the
+        global state is seeded and restored around the call, under a module lock, so that two
+        threads of one process building hierarchies cannot interleave their seed and restore.
         """
         import pyamg
 
@@ -467,12 +478,13 @@ class PressureSolver:
             self._amg_data = As.data.copy()
             self.n_setups += 1
         A0 = sp.csr_array((self._amg_data, As.indices, As.indptr), shape=As.shape)
-        state = np.random.get_state()
-        np.random.seed(0)
-        try:
-            self._ml = pyamg.smoothed_aggregation_solver(A0, max_coarse=500)
-        finally:
-            np.random.set_state(state)
+        with _GLOBAL_RNG_LOCK:
+            state = np.random.get_state()
+            np.random.seed(0)
+            try:
+                self._ml = pyamg.smoothed_aggregation_solver(A0, max_coarse=500)
+            finally:
+                np.random.set_state(state)
 
 
 def _solve_columns(base, nodes):
@@ -525,6 +537,8 @@ _PREFETCH_FILL = 100.0
 #: Batches of base columns at least this large are solved on two threads.
 _SPLIT_COLUMNS = 8
 _POOL: dict = {}  # process id -> executor (a forked child must not use its parent's dead worker)
+#: Held while pyamg draws from NumPy's global generator (see :meth:`PressureSolver._setup_amg`).
+_GLOBAL_RNG_LOCK = threading.Lock()
 
 
 def _pool():
