@@ -80,7 +80,8 @@ class VCycle:
     ----------
     levels : list
         ``MultilevelSolver.levels`` of pyamg: each with ``A`` (n_l, n_l); all but the last with
-        ``P`` (n_l, n_{l+1}) and ``R`` (n_{l+1}, n_l).
+        ``P`` (n_l, n_{l+1}) (the restriction is ``P.T``). Their ``A``, ``P``, ``R`` are replaced by
+        the CSR forms the cycle uses (the same operators), so the hierarchy is held once.
     coarse_solver : callable
         ``coarse_solver(A, b) -> x``, exact on the last level (pyamg's ``MultilevelSolver.coarse_solver``:
         its sparse LU drops the zero rows and columns that aggregates of constrained nodes leave).
@@ -90,10 +91,11 @@ class VCycle:
         from pyamg import amg_core
 
         self._gs = amg_core.gauss_seidel
-        self.A = [_csr(lv.A) for lv in levels]
+        self.A = [_csr(lv.A) for lv in levels[:-1]] + [levels[-1].A]
         self.P = [_csr(lv.P) for lv in levels[:-1]]
-        self.R = [_csr(lv.R) for lv in levels[:-1]]
         self.A_rev = [_reversed(a) for a in self.A[:-1]]
+        for lv, A, P in zip(levels[:-1], self.A[:-1], self.P, strict=True):  # the CSR forms, held once
+            lv.A, lv.P, lv.R = A, P, P.T
         self._coarse_A, self._coarse = levels[-1].A, coarse_solver
 
     @property
@@ -126,6 +128,7 @@ class VCycle:
         A = self.A[level]
         x = np.zeros_like(b)
         self._sweep(level, x, b, True)
-        x += self.P[level] @ self(self.R[level] @ (b - A @ x), level + 1)
+        P = self.P[level]
+        x += P @ self(P.T @ (b - A @ x), level + 1)  # R = P^T (pyamg's symmetric hierarchy)
         self._sweep(level, x, b, False)
         return x

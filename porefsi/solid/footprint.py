@@ -34,8 +34,12 @@ TANGENT_NNZ_PER_DOF = 36.0
 #: AMG-CG bytes per free dof: the free-dof tangent, the padded BSR copy of it, the hierarchy
 #: (operator complexity 2.3-2.4 with six near-null-space vectors), CG's vectors. Measured as the
 #: rise of the run's peak over what mesh and model hold: 2,170, 2,060, 2,190 B/dof at 185k, 509k,
-#: 1.49M dofs (the 200³, 280³ crops and the whole 400³ Berea).
-AMG_BYTES_PER_DOF = 2200.0
+#: 1.49M dofs (the 200³, 280³ crops and the whole 400³ Berea), with pyamg's own V-cycle; plus
+#: 1,150 B/dof since 2026-12-02 for porefsi's V-cycle (porefsi.solid._vcycle: the levels in CSR
+#: instead of BSR and a row-reversed copy of each for the backward sweep, counted as the
+#: hierarchy's array bytes on the 120³ Berea crop's graded mesh, 1,288 -> 2,439 B/dof; not yet
+#: re-measured as a run's peak).
+AMG_BYTES_PER_DOF = 3350.0
 #: Estimates below this change no choice and refuse no run: the estimate's error and the swings of
 #: the machine's available memory are of their size, and a run this small cannot take a machine down.
 MEMORY_FLOOR = float(2**30)

@@ -247,11 +247,12 @@ class SolidModel:
         Per ``linear_solver``. "auto": below :data:`SMALL_DOFS` free dofs a sparse LU (factoring
         is cheap there); above, :class:`~porefsi.solid.linsolve.AdaptiveSolverFactory`: CG
         preconditioned by pyamg smoothed aggregation with rigid-body modes (the hierarchy shared
-        and reused across matrices while CG converges within 40 iterations) for a matrix's first
-        20 solves, so Newton tangents and per-step TDG tangents stay on AMG-CG; a matrix that
-        keeps serving solves (a frozen TDG :math:`M^*`) is then factorised once, up to 1e5 dofs
-        (measured on the 57k-tet sample: 0.12 s per TDG step with the factor vs 0.3-0.9 s with
-        AMG-CG; docs/solid.md section 8). Above 1e5 dofs it stays on AMG-CG (factor memory).
+        and reused across matrices while CG converges within 40 iterations), so Newton tangents and
+        per-step TDG tangents stay on AMG-CG; a matrix that keeps serving solves (a frozen TDG
+        :math:`M^*`) is factorised once the AMG-CG work spent on it reaches its predicted
+        factorisation cost (not before its 20th solve), up to 1e5 dofs (measured on the 57k-tet
+        sample: 0.12 s per TDG step with the factor vs 0.3-0.9 s with AMG-CG; docs/solid.md
+        sections 5 and 8). Above 1e5 dofs it stays on AMG-CG (factor memory).
         """
         kind = self.linear_solver
         if kind == "auto" and self.n_dofs < SMALL_DOFS:
