@@ -171,6 +171,7 @@ def test_prefetch_cannot_overflow_the_cache_at_constant_pressure():
 def test_two_thread_column_batches_give_the_one_cpu_answer(rng, monkeypatch):
     # large batches of base columns are split in halves (two threads when there are two CPUs);
     # the split is the same with one CPU, so the answer does not depend on the machine
+    from porefsi.flow import _drainage_columns as dc
     from porefsi.flow import _drainage_solver as ds
 
     net = lattice_network((14, 10, 8), SPACING, rng)
@@ -187,10 +188,10 @@ def test_two_thread_column_batches_give_the_one_cpu_answer(rng, monkeypatch):
     runs = []
     import os
 
-    for pool in (ds._pool(), None):
-        monkeypatch.setattr(ds, "_POOL", {os.getpid(): pool})
+    for pool in (dc.pool_(), None):
+        monkeypatch.setattr(dc, "POOL", {os.getpid(): pool})
         runs.append(_run(net, fl, rate, prefetch=True))
-    assert max(sizes) >= ds._SPLIT_COLUMNS  # split batches were exercised
+    assert max(sizes) >= dc.SPLIT_COLUMNS  # split batches were exercised
     h0, h1 = runs[0].history(), runs[1].history()
     for k in h0:
         np.testing.assert_array_equal(h0[k], h1[k], err_msg=k)
@@ -203,11 +204,11 @@ def test_a_forked_child_gets_its_own_column_worker(rng):
     import multiprocessing as mp
     import os
 
-    from porefsi.flow import _drainage_solver as ds
+    from porefsi.flow import _drainage_columns as dc
 
     if "fork" not in mp.get_all_start_methods():
         pytest.skip("no fork on this platform")
-    parent = ds._pool()
+    parent = dc.pool_()
     if parent is None:
         pytest.skip("one CPU: no worker thread")
     net = lattice_network((10, 8, 6), SPACING, rng)
@@ -223,7 +224,7 @@ def test_a_forked_child_gets_its_own_column_worker(rng):
 def _child_run(net, fl, rate):
     import os
 
-    from porefsi.flow import _drainage_solver as ds
+    from porefsi.flow import _drainage_columns as dc
 
     sim = _run(net, fl, rate, prefetch=True)
-    return sim.counters["n_events"], next(iter(ds._POOL)) if ds._POOL else os.getpid()
+    return sim.counters["n_events"], next(iter(dc.POOL)) if dc.POOL else os.getpid()

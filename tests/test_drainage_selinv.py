@@ -102,7 +102,10 @@ def test_pressure_solver_selinv_follows_a_sequence_of_changes():
         b[rng.choice(n, 4, replace=False)] = rng.standard_normal(4)
         x = ps.solve(A, b)
         np.testing.assert_allclose(x, sp.linalg.spsolve(A.tocsc(), b), rtol=1e-9, atol=1e-12)
-    assert ps.n_setups >= 2  # the rank cap forced refactorisations
+    # the rank cap forced refactorisations (90 changed rows, cap 40), and nothing else did: the
+    # updates met the residual target by themselves (a wrong update is refined, then refactorised
+    # away, so the answers above would pass with a broken update; its cost would not)
+    assert 2 <= ps.n_setups <= 4 and ps.iterations <= 2
 
 
 def _rate_for_ca(net, fl, ca):

@@ -42,16 +42,15 @@ References
 
 from __future__ import annotations
 
-import os
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
 from porefsi.errors import InputError
+from porefsi.flow import _drainage_columns as cols
 from porefsi.flow import _drainage_linalg as la
 from porefsi.flow import _drainage_selinv as selinv
 
@@ -487,31 +486,6 @@ class PressureSolver:
                 np.random.set_state(state)
 
 
-def _solve_columns(base, nodes):
-    """Append ``A0^-1 e_v`` for ``nodes`` (none cached yet) to the base's cache: one batched solve.
-
-    A batch of at least :data:`_SPLIT_COLUMNS` is split in two halves, solved on two threads when
-    there are two CPUs (SuperLU releases the GIL: 1.5x on two cores), one after the other
-    otherwise. The split depends on the batch alone, so the columns, hence every answer, are the
-    same with one CPU or two and in a resumed run.
-    """
-    k = base["ncols"]
-    E = np.zeros((base["WT"].shape[1], nodes.size))
-    E[nodes, np.arange(nodes.size)] = 1.0
-    lu = base["lu"]
-    if nodes.size >= _SPLIT_COLUMNS:  # split the same way with one CPU: the same columns everywhere
-        h = nodes.size // 2
-        pool = _pool()
-        second = pool.submit(lu.solve, E[:, h:]) if pool is not None else None
-        base["WT"][k:k + h] = lu.solve(E[:, :h]).T
-        base["WT"][k + h:k + nodes.size] = (second.result() if second is not None else lu.solve(E[:, h:])).T
-    else:
-        base["WT"][k:k + nodes.size] = lu.solve(E).T
-    base["col_of"][nodes] = np.arange(k, k + nodes.size)
-    base["ncols"] = k + nodes.size
-    base["batches"].append(nodes.copy())
-
-
 def _default_rank(n: int, fill: float | None = None) -> int:
     """Rank cap of the low-rank solver: ``2 sqrt(n)`` (40..600), lowered where the factor is sparse.
 
@@ -534,32 +508,9 @@ def _default_rank(n: int, fill: float | None = None) -> int:
 _PREFETCH_FILL = 100.0
 
 
-#: Batches of base columns at least this large are solved on two threads.
-_SPLIT_COLUMNS = 8
-_POOL: dict = {}  # process id -> executor (a forked child must not use its parent's dead worker)
 #: Held while pyamg draws from NumPy's global generator (see :meth:`PressureSolver._setup_amg`).
 _GLOBAL_RNG_LOCK = threading.Lock()
 
 
-def _pool():
-    """A one-worker thread pool for the second half of large column batches (None on one CPU)."""
-    pid = os.getpid()
-    if pid not in _POOL:
-        n_cpu = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-        _POOL.clear()
-        _POOL[pid] = ThreadPoolExecutor(1, thread_name_prefix="porefsi-columns") if n_cpu >= 2 else None
-    return _POOL[pid]
-
-
-def _woodbury(upd, y):
-    """``y - W D M^-1 y_S`` for ``y = A0^-1 b`` (``W`` stored transposed as cached rows ``WT``)."""
-    lu_m, S, cS, D, WT = upd
-    if lu_m is None:
-        return y
-    z = sla.lu_solve(lu_m, y[S], check_finite=False)
-    coef = np.zeros(WT.shape[0])  # the correction as a combination of all cached rows: no copy of
-    coef[cS] = D @ z  # the |S| rows it needs (at 64k unknowns, 500 rows: a 256 MB copy per call)
-    return y - coef @ WT
-
-
 _lu, _scaled, _rows, _pcg = la.lu, la.scaled, la.rows, la.pcg  # the shared linear algebra (module _drainage_linalg)
+_solve_columns, _woodbury = cols.solve_columns, cols.woodbury  # the base columns (module _drainage_columns)
