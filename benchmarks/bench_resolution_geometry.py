@@ -8,10 +8,17 @@ script prints the median ratio fine / native of each quantity in metres (inscrib
 area, shape factor, conduit length, throat-duct share, entry radius) and, per image, the pore count,
 the labelled porosity, the median pore radius and the permeability (mean of x, y, z).
 
+``--bins``: per matched conduit, each ingredient of its conductance in metres (throat radius,
+section area, shape factor, the duct law per length, throat-duct length L_t, pore-duct lengths,
+conduit length, throat and pore-duct resistances, conduit conductance), ratio fine / native as a
+geometric mean weighted by the native network's conduit dissipation (summed over x, y, z), binned
+by the native throat radius in native voxels (``docs/extraction.md``, "Constriction length with
+the section's own law").
+
 Usage::
 
     python benchmarks/bench_resolution_geometry.py [--rocks sample berea blobs spheres] [--factors 1 2 3]
-        [--crop 100] [--floor auto|voxels|length]
+        [--crop 100] [--floor auto|voxels|length] [--bins]
 """
 
 from __future__ import annotations
@@ -29,9 +36,10 @@ sys.path.insert(0, str(HERE))
 from bench_extract_resolution import rocks, upsample  # noqa: E402
 
 from porefsi.errors import NetworkError  # noqa: E402
-from porefsi.flow.permeability import absolute_permeability  # noqa: E402
+from porefsi.flow.permeability import absolute_permeability, flow_field  # noqa: E402
 from porefsi.image.voxel_image import VoxelImage  # noqa: E402
 from porefsi.network.extract import extract_network  # noqa: E402
+from porefsi.network.geometry import duct_conductance_factor, duct_lengths, resistance_factors  # noqa: E402
 
 DATA = HERE.parent.parent / "shared" / "data"
 
@@ -59,6 +67,44 @@ def throat_table(ext):
         "f_throat": net.throat_duct_fraction[:, 1],
         "r_over_sqrtA": net.throat_radius / np.sqrt(s["area"]),
     }
+
+
+def conduit_table(ext):
+    """Each conduit's ingredients in metres (keys as printed by :func:`print_bins`)."""
+    net = ext.network
+    L, h = duct_lengths(net), resistance_factors(net)
+    return {
+        "r_t": net.throat_radius, "A": ext.sections["area"], "G": net.throat_shape_factor,
+        "g_law": duct_conductance_factor(net.throat_radius, net.throat_shape_factor),
+        "L_t": L[:, 1], "L_p": L[:, 0] + L[:, 2], "L": L.sum(axis=1), "h_t": h[:, 1], "h_p": h[:, 0] + h[:, 2],
+        "g": 1.0 / h.sum(axis=1),
+    }
+
+
+def dissipation(net):
+    """Each conduit's share of the network's dissipation, summed over the x, y, z solves."""
+    w = np.zeros(net.n_throats)
+    for ax in "xyz":
+        r = absolute_permeability(net, ax)
+        dp = r.pressure[net.throat_conns[:, 0]] - r.pressure[net.throat_conns[:, 1]]
+        d = np.nan_to_num(np.abs(flow_field(net, r.pressure) * dp))
+        w += d / d.sum()
+    return w
+
+
+def print_bins(ext1, extf, pairs):
+    """Dissipation-weighted geometric mean of fine / native per ingredient, by native throat radius."""
+    t1, tf = conduit_table(ext1), conduit_table(extf)
+    w = dissipation(ext1.network)[pairs[:, 0]]
+    rnat = t1["r_t"][pairs[:, 0]] / ext1.network.voxel_size
+    print("   r_t bin (native vox)  conduits share  " + " ".join(f"{k:>6s}" for k in t1))
+    for lo, hi in ((0, 1), (1, 1.5), (1.5, 2), (2, 3), (3, 99), (0, 99)):
+        s = (rnat >= lo) & (rnat < hi)
+        if not s.any():
+            continue
+        gm = [np.exp(np.average(np.log(tf[k][pairs[s, 1]] / t1[k][pairs[s, 0]]), weights=w[s])) for k in t1]
+        print(f"   [{lo:g}, {hi:g}){'':12s} {int(s.sum()):5d} {w[s].sum() / w.sum():5.2f}  "
+              + " ".join(f"{v:6.3f}" for v in gm))
 
 
 def match(ext1, extf, f):
@@ -98,6 +144,7 @@ def main(argv=None):
         "length (min_radius = 1.5 f + 0.5 voxels, held at the native length by knowing f)",
     )
     ap.add_argument("--floor-length", action="store_true", help="same as --floor length")
+    ap.add_argument("--bins", action="store_true", help="per-ingredient ratios by throat radius (module docstring)")
     args = ap.parse_args(argv)
     print(f"load {open('/proc/loadavg').read().split()[:3]}")
     for name, pore, vs in rocks(args.rocks, args.data, args.crop):
@@ -143,6 +190,8 @@ def main(argv=None):
             d1 = (t1["r_t"][pairs[:, 0]] - tf["r_t"][pairs[:, 1]]) / vs
             parts.append(f"r_t(1x)-r_t(fx) median {np.median(d1):+.3f} native vox")
             print(" ".join(parts))
+            if args.bins:
+                print_bins(ext1, ext, pairs)
 
 
 if __name__ == "__main__":

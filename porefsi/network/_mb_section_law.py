@@ -24,14 +24,12 @@ from porefsi.network.network import CIRCLE_SHAPE_FACTOR
 @jit
 def _grid_voxel(x, e1, e2, s, t, dims):
     """Voxel (i, j, k) nearest to the plane-grid point ``x + s e1 + t e2``; (-1, -1, -1) off the image."""
-    p = (x[0] + s * e1[0] + t * e2[0], x[1] + s * e1[1] + t * e2[1], x[2] + s * e1[2] + t * e2[2])
-    out = np.empty(3, np.int64)
-    for a in range(3):
-        v = int(math.floor(p[a] + 0.5))
-        if v < 0 or v >= dims[a]:
-            return -1, -1, -1
-        out[a] = v
-    return out[0], out[1], out[2]
+    i = int(math.floor(x[0] + s * e1[0] + t * e2[0] + 0.5))
+    j = int(math.floor(x[1] + s * e1[1] + t * e2[1] + 0.5))
+    k = int(math.floor(x[2] + s * e1[2] + t * e2[2] + 0.5))
+    if i < 0 or i >= dims[0] or j < 0 or j >= dims[1] or k < 0 or k >= dims[2]:
+        return -1, -1, -1
+    return i, j, k
 
 
 @jit
