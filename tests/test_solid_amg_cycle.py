@@ -10,7 +10,7 @@ import scipy.sparse as sp
 from scipy import ndimage
 
 from porefsi.image.voxel_image import VoxelImage
-from porefsi.solid._vcycle import VCycle, _reversed, relax_candidates
+from porefsi.solid._vcycle import LEVEL_DROP, VCycle, _reversed, lumped, relax_candidates
 from porefsi.solid.bc import uniaxial_bcs
 from porefsi.solid.graded import mesh_graded
 from porefsi.solid.linsolve import AMGSolverFactory, direct_solver_factory
@@ -111,3 +111,37 @@ def test_amg_cg_equals_the_sparse_lu_on_a_graded_mesh(graded_model, rng):
     fac3 = AMGSolverFactory(m.dof_points, m.free, rtol=1e-10, rotations=False)
     fac3(K)(b)
     assert fac3.last.iterations > fac.last.iterations
+
+
+def test_lumped_level_is_the_definition_and_stays_spd(rng):
+    """lumped(A, theta): entries below theta * sqrt(a_ii a_jj) leave, their magnitudes join the diagonal
+    (a dense twin); the result is symmetric and A' - A is positive semidefinite."""
+    A = _spd(80, rng)
+    Ad = A.toarray()
+    d = np.sqrt(np.outer(np.diag(Ad), np.diag(Ad)))
+    off = ~np.eye(80, dtype=bool)
+    theta = float(np.median((np.abs(Ad) / d)[off & (Ad != 0)]))  # half the entries go
+    small = (np.abs(Ad) < theta * d) & off & (Ad != 0)
+    twin = np.where(small, 0.0, Ad) + np.diag(np.where(small, np.abs(Ad), 0.0).sum(axis=1))
+    out = lumped(A, theta).toarray()
+    assert small.any() and (~small & (Ad != 0) & off).any()
+    np.testing.assert_allclose(out, twin, rtol=1e-14, atol=1e-14)
+    np.testing.assert_array_equal(out, out.T)
+    assert np.linalg.eigvalsh(out - Ad).min() > -1e-12
+
+
+def test_amg_on_a_graded_mesh_with_lumped_levels(graded_model, rng):
+    """With an intermediate level (lumped by default) AMG-CG still reaches the LU's answer, and the
+    cycle is still a symmetric positive definite preconditioner."""
+    m = graded_model
+    K = m.tangent(np.zeros(m.n_dofs), 1.0)
+    b = rng.standard_normal(m.n_dofs)
+    x_lu = direct_solver_factory()(K)(b)
+    fac = AMGSolverFactory(m.dof_points, m.free, rtol=1e-10, max_coarse=30)
+    x = fac(K)(b)
+    assert len(fac.ml.levels) >= 3  # an intermediate level exists, so the lumping is exercised
+    np.testing.assert_array_equal(fac._M.A[1].toarray(), lumped(fac.ml.levels[1].A, LEVEL_DROP).toarray())
+    assert np.linalg.norm(x - x_lu) <= 1e-8 * np.linalg.norm(x_lu)
+    x1, x2 = rng.standard_normal((2, m.n_dofs))
+    a, c = x2 @ fac.precondition(x1), x1 @ fac.precondition(x2)
+    assert abs(a - c) <= 1e-10 * abs(a) and x1 @ fac.precondition(x1) > 0
