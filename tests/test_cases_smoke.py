@@ -190,7 +190,7 @@ def _check_flow_rates(saved, out):
     mu_n = smoke_case(load_case(CASES / "flow_rates" / "case.toml")).fluids.mu_n
     q_star = (saved["pc_breakthrough_ip_Pa"] * saved["permeability_m2"] * saved["inlet_area_m2"]
               / (mu_n * saved["length_m"]))
-    assert saved["critical_rate_estimate_m3_s"] == pytest.approx(q_star, rel=1e-12)
+    assert saved["critical_rate_estimate_m3_s"] == pytest.approx(q_star, rel=1e-9, abs=0.0)
     # the fluid scan's crossover (peak inlet pressure = 2 Pc_bt) lies within 2x of that estimate
     # (measured 1.39x in the full run, cases/flow_rates/results.json; water's viscosity, 10x lower, would miss)
     ratio = saved["critical_rate_measured_m3_s"] / saved["critical_rate_estimate_m3_s"]
