@@ -52,8 +52,9 @@ class SolidOptions:
     linear_solver: str = option("direct", "solid linear solves: direct = sparse LU factorised once and reused while "
                                 "the tangent holds (fastest to ~1e5 dofs; above 1e5 free dofs, or where the factor "
                                 "would not fit in memory, AMG-CG is used instead, with a warning); amg = CG + smoothed "
-                                "aggregation (large meshes); jacobi = Jacobi-CG; auto = AMG-CG for a matrix's first 20 "
-                                "solves, then a reused LU of it up to 1e5 dofs",
+                                "aggregation (large meshes); jacobi = Jacobi-CG; auto = AMG-CG, and a "
+                                "reused LU of a matrix once the AMG-CG work spent on it reaches its predicted "
+                                "factorisation (not before its 20th solve; up to 1e5 dofs)",
                                 choices=("direct", "amg", "jacobi", "auto"))
     load_axis: str = option("z", "axis of the mechanical load (fixed low face, moving high face)",
                             choices=("x", "y", "z"))
