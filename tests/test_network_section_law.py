@@ -169,3 +169,32 @@ def test_paper_model_ignores_the_switches(law):
     without = extract_network(lat.image, conductance="paper").network
     np.testing.assert_array_equal(with_law.throat_length, without.throat_length)
     np.testing.assert_array_equal(with_law.throat_pore_length, without.throat_pore_length)
+
+
+def test_threads_do_not_change_the_samples():
+    """The plane floods run on numba's threads: one thread and all of them give the same lengths to the bit
+    (a lattice of unequal pores and throats, walled box)."""
+    import numba
+
+    rng = np.random.default_rng(3)
+    lat = sphere_lattice(n=(3, 3, 3), spacing=14, pore_radius=rng.uniform(4.0, 6.0, 27),
+                         throat_radius=rng.uniform(1.5, 3.0, 54))
+    dt2 = _distance_map(lat.image.phases.astype(bool))
+    ex = extract_network(lat.image)
+    vs, net = lat.image.voxel_size, ex.network
+    centre = net.pore_coords / vs - 0.5
+    conns = net.throat_conns.astype(np.int64)
+    point = 0.5 * (centre[conns[:, 0]] + centre[conns[:, 1]])
+    rt, rp = net.throat_radius / vs, net.pore_radius / vs
+    sections = (rt, rp, np.full(rt.size, 0.05), np.full(rp.size, 0.04))
+    args = (ex.labels, dt2, wall_radius_table(dt2.max()), (centre, point, conns), sections, np.ones(3, np.int64))
+    n = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = section_law_lengths(*args)
+    finally:
+        numba.set_num_threads(n)
+    many = section_law_lengths(*args)
+    assert np.count_nonzero((many[1] > 0.0) & (many[1] < many[0])) > 20  # constrictions measured
+    np.testing.assert_array_equal(one[0], many[0])
+    np.testing.assert_array_equal(one[1], many[1])

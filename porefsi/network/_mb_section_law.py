@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from porefsi._numba import jit
+from porefsi._numba import jit, prange
 from porefsi.network._mb_edt import _d2
 from porefsi.network._mb_sections import SAMPLE_STEP, _nearest, _perp_basis, _section_radius
 from porefsi.network.geometry import duct_conductance_factor
@@ -109,62 +109,91 @@ def _widest(dt2, x, plane, box, rho):
 
 
 @jit
-def _law_samples(dt2, rad_tab, labels, geom, offsets, caps, box):
-    """Inscribed radius and section area at every constriction sample of every throat side.
+def _sample_point(c, pt, j, m):
+    """Sample ``j`` of ``m`` on the side from c to pt: its point, the side's unit direction and normal plane."""
+    dx, dy, dz = pt[0] - c[0], pt[1] - c[1], pt[2] - c[2]
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    u = (dx / d, dy / d, dz / d)
+    f = (j + 0.5) / m
+    return (c[0] + f * dx, c[1] + f * dy, c[2] + f * dz), u, _perp_basis(u[0], u[1], u[2])
+
+
+@jit(parallel=True)
+def _law_radii(dt2, rad_tab, geom, offsets, box):
+    """Inscribed radius and the plane flood's seed at every constriction sample of every throat side.
 
     Side ``q = 2 t + s`` of throat ``t`` runs from the centre of pore ``conns[t, s]`` to the throat
     point; it is sampled at the midpoints of ``offsets[q + 1] - offsets[q]`` equal parts (as
     :func:`porefsi.network._mb_sections._lengths`, zero parts for a side not integrated). Each
     sample reads the radius of :func:`porefsi.network._mb_sections._section_radius` (the ridge
     estimate of the widest channel voxel within the ball inscribed at the sample, in the plane
-    normal to the side) and the area of the channel's section in that plane through the sample
-    (:func:`_plane_area`, started at that widest voxel, restricted to the throat's two pores, at
-    most ``caps[q]`` voxel faces).
+    normal to the side) and the grid offset of that widest voxel (:func:`_widest`), where
+    :func:`_law_areas` starts the sample's plane flood. Sides run on numba's threads (``prange``);
+    each sample is computed alone, so the result does not depend on the number of threads.
 
     Parameters
     ----------
     geom : tuple (centre (Np, 3) float64, point (Nt, 3) float64, conns (Nt, 2) int64)
     offsets : ndarray of int64, shape (2 Nt + 1,)
-    caps : ndarray of int64, shape (2 Nt,)
     box : ndarray of int64, shape (3,)
         Walled axes (:func:`porefsi.network._mb_edt._d2`).
 
     Returns
     -------
-    r, area : ndarray of float64, shape (offsets[-1],)
-        Voxels, voxel faces.
+    r : ndarray of float64, shape (offsets[-1],)
+        Voxels.
+    seed : ndarray of int64, shape (offsets[-1], 3)
+        Grid offsets (s0, t0) and 1 where the sample is in the channel (0: no flood, area 0).
     """
     centre, point, conns = geom
     n_s = offsets[-1]
     r_out = np.zeros(n_s, np.float64)
-    a_out = np.zeros(n_s, np.float64)
-    w = 2 * 64 + 1
-    work = (np.zeros((w, w), np.int64), np.zeros((w * w, 2), np.int64), np.zeros((w * w, 2), np.int64))
+    seed = np.zeros((n_s, 3), np.int64)
     dims = dt2.shape
-    for t in range(conns.shape[0]):
-        pair = (conns[t, 0], conns[t, 1])
-        for s in range(2):
-            q = 2 * t + s
+    for q in prange(offsets.size - 1):
+        m = offsets[q + 1] - offsets[q]
+        for j in range(m):
+            x, u, plane = _sample_point(centre[conns[q // 2, q % 2]], point[q // 2], j, m)
+            r_out[offsets[q] + j] = _section_radius(dt2, rad_tab, x, u, plane, box, False)
+            a, b, c = _nearest(x[0], dims[0]), _nearest(x[1], dims[1]), _nearest(x[2], dims[2])
+            rho = rad_tab[_d2(dt2, a, b, c, box)]
+            if rho > 0.0:
+                seed[offsets[q] + j, 0], seed[offsets[q] + j, 1] = _widest(dt2, x, plane, box, rho)
+                seed[offsets[q] + j, 2] = 1
+    return r_out, seed
+
+
+@jit(parallel=True)
+def _law_areas(dt2, labels, geom, offsets, seed, caps, box):
+    """Area of the channel's section at every constriction sample (:func:`_law_radii`'s samples).
+
+    The plane flood of :func:`_plane_area` from the sample's ``seed``, restricted to the throat's
+    two pores, at most ``caps[i]`` voxel faces for sample ``i`` (shape (offsets[-1],) int64); 0
+    where ``seed[i, 2]`` is 0. Blocks of :data:`BLOCK` throats run on numba's threads, each with
+    its own scratch (left all zero by every flood), so the result does not depend on the number of
+    threads. Returns ndarray of float64, shape (offsets[-1],), voxel faces.
+    """
+    centre, point, conns = geom
+    a_out = np.zeros(offsets[-1], np.float64)
+    n_t = conns.shape[0]
+    w = 2 * 64 + 1
+    for blk in prange((n_t + BLOCK - 1) // BLOCK):
+        work = (np.zeros((w, w), np.int64), np.zeros((w * w, 2), np.int64), np.zeros((w * w, 2), np.int64))
+        for q in range(2 * blk * BLOCK, min(2 * n_t, 2 * (blk + 1) * BLOCK)):
             m = offsets[q + 1] - offsets[q]
-            if m == 0:
-                continue
-            p = conns[t, s]
-            dx, dy, dz = point[t, 0] - centre[p, 0], point[t, 1] - centre[p, 1], point[t, 2] - centre[p, 2]
-            d = math.sqrt(dx * dx + dy * dy + dz * dz)
-            u = (dx / d, dy / d, dz / d)
-            plane = _perp_basis(u[0], u[1], u[2])
+            pair = (conns[q // 2, 0], conns[q // 2, 1])
             for j in range(m):
-                f = (j + 0.5) / m
-                x = (centre[p, 0] + f * dx, centre[p, 1] + f * dy, centre[p, 2] + f * dz)
-                r_out[offsets[q] + j] = _section_radius(dt2, rad_tab, x, u, plane, box, False)
-                a, b, c = _nearest(x[0], dims[0]), _nearest(x[1], dims[1]), _nearest(x[2], dims[2])
-                rho = rad_tab[_d2(dt2, a, b, c, box)]
-                if rho == 0.0:
+                i = offsets[q] + j
+                if seed[i, 2] == 0:
                     continue
-                s0, t0 = _widest(dt2, x, plane, box, rho)
-                seed = (s0, t0, pair[0], pair[1])
-                a_out[offsets[q] + j] = _plane_area(dt2, labels, box, x, plane, seed, caps[q], work)
-    return r_out, a_out
+                x, _, plane = _sample_point(centre[conns[q // 2, q % 2]], point[q // 2], j, m)
+                a_out[i] = _plane_area(dt2, labels, box, x, plane, (seed[i, 0], seed[i, 1], pair[0], pair[1]),
+                                       caps[i], work)
+    return a_out
+
+
+#: Throats per block of :func:`_law_areas` (one scratch allocation per block; blocks run in parallel).
+BLOCK = 8
 
 
 def section_law_lengths(labels, dt2, rad_tab, geom, sections, box):
@@ -173,7 +202,7 @@ def section_law_lengths(labels, dt2, rad_tab, geom, sections, box):
     The side is sampled as the default constriction samples are
     (:func:`porefsi.network._mb_sections._lengths`: midpoints of ``ceil(d / SAMPLE_STEP)`` parts),
     each sample reading the inscribed radius ``r`` and the planar section area ``A``
-    (:func:`_law_samples`), and its conductance per length is the duct law of the network,
+    (:func:`_law_radii`, :func:`_law_areas`), and its conductance per length is the duct law of the network,
     ``g = duct_conductance_factor(r, min(r^2 / (4 A), 1 / (4 pi)))``
     (:func:`porefsi.network.geometry.duct_conductance_factor`), with r clamped to
     ``[r_t, R]`` and g to ``[g_t, g_p]`` (the throat's and the pore's ducts: radius and measured
@@ -218,8 +247,11 @@ def section_law_lengths(labels, dt2, rad_tab, geom, sections, box):
     integral = np.zeros(2 * n_t)
     lims = (r_t, R.ravel(), g_t.ravel(), g_p.ravel(), d.ravel())
     for a, b in _chunks(offsets, CHUNK):  # throats a..b-1: bounded sample arrays (the flood stays the peak)
-        rs, As = _law_samples(dt2, rad_tab, labels, (centre, point[a:b], conns[a:b]), offsets[2 * a:2 * b + 1] -
-                              offsets[2 * a], caps[2 * a:2 * b], box)
+        geom_ab = (centre, point[a:b], conns[a:b])
+        off = offsets[2 * a:2 * b + 1] - offsets[2 * a]
+        rs, seed = _law_radii(dt2, rad_tab, geom_ab, off, box)
+        cap = np.repeat(caps[2 * a:2 * b], m[2 * a:2 * b])
+        As = _law_areas(dt2, labels, geom_ab, off, seed, cap, box)
         integral[2 * a:2 * b] = _side_integrals(rs, As, m[2 * a:2 * b], lims, 2 * a)
     integral = integral.reshape(n_t, 2)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -249,13 +281,24 @@ def _chunks(offsets, size):
     return out
 
 
+def _law(r, A):
+    """The samples' duct law: conductance factor of inscribed radius r and section area A (voxels)."""
+    G = np.minimum(r**2 / (4.0 * np.maximum(A, 1e-300)), CIRCLE_SHAPE_FACTOR)
+    return duct_conductance_factor(r, G)
+
+
+def _clamped_radius(rs, lims, glob):
+    """Sample radii clamped to ``[r_t, R]`` of their sides ``glob``."""
+    r_t, R = lims[0], lims[1]
+    return np.minimum(np.maximum(rs, r_t[glob // 2]), R[glob])
+
+
 def _side_integrals(rs, As, m, lims, first):
     """``sum (d / m) / g`` per side of one batch (sides ``first``, ``first + 1``, ...), g the clamped duct law."""
     r_t, R, g_t, g_p, d = lims
     side = np.repeat(np.arange(m.size), m)
     glob = side + first
-    r = np.minimum(np.maximum(rs, r_t[glob // 2]), R[glob])
-    G = np.minimum(r**2 / (4.0 * np.maximum(As, 1e-300)), CIRCLE_SHAPE_FACTOR)
-    g = np.clip(duct_conductance_factor(r, G), g_t[glob], g_p[glob])
+    r = _clamped_radius(rs, lims, glob)
+    g = np.clip(_law(r, As), g_t[glob], g_p[glob])
     step = d[glob] / m[side]
     return np.bincount(side, weights=step / g, minlength=m.size)
