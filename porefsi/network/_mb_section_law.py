@@ -53,14 +53,15 @@ def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
     ``box``) and belongs to pore ``la`` or ``lb`` is counted, up to ``cap`` points (the count
     then returns ``cap``). ``work``: int64 scratch arrays (seen (W, W), stack (W * W, 2), trail
     (W * W, 2)), ``W`` odd, the grid centred on s = t = 0 (points beyond it are not visited);
-    ``seen`` is all zero on entry and on return.
+    ``seen`` is all zero on entry and on return. The inner loop reads the voxel inline (the
+    :func:`_grid_voxel` and :func:`_in_channel` tests, no calls per point).
     """
     seen, stack, trail = work
     h = seen.shape[0] // 2
-    dims = dt2.shape
+    nx, ny, nz = dt2.shape
     e1, e2 = plane
     s0, t0, la, lb = seed
-    i, j, k = _grid_voxel(x, e1, e2, s0, t0, dims)
+    i, j, k = _grid_voxel(x, e1, e2, s0, t0, dt2.shape)
     if abs(s0) > h or abs(t0) > h or not _in_channel(dt2, labels, box, i, j, k, la, lb):
         return 0
     stack[0, 0], stack[0, 1] = s0, t0
@@ -79,8 +80,14 @@ def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
             seen[u + h, v + h] = 1
             trail[n_trail, 0], trail[n_trail, 1] = u, v
             n_trail += 1
-            i, j, k = _grid_voxel(x, e1, e2, u, v, dims)
-            if _in_channel(dt2, labels, box, i, j, k, la, lb):
+            i = int(math.floor(x[0] + u * e1[0] + v * e2[0] + 0.5))
+            j = int(math.floor(x[1] + u * e1[1] + v * e2[1] + 0.5))
+            k = int(math.floor(x[2] + u * e1[2] + v * e2[2] + 0.5))
+            if i < 0 or i >= nx or j < 0 or j >= ny or k < 0 or k >= nz or dt2[i, j, k] == 0:
+                continue
+            # the walled map is 0 only where dt2 is (its box terms are >= 1)
+            lab = labels[i, j, k]
+            if lab == la or lab == lb:
                 stack[n_stack, 0], stack[n_stack, 1] = u, v
                 n_stack += 1
     for q in range(n_trail):
