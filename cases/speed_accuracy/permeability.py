@@ -135,7 +135,8 @@ def locate_berea(given: Path | None, which, smoke: bool = False) -> tuple[Path |
     if given is not None:
         if not given.is_file():
             raise InputError(f"--berea {given}: no such file; pass the 400^3 Berea npz "
-                             "(e.g. /work/shared/data/berea_icl_400.npz) or leave out crop200 and berea400 (--images)")
+                             "(berea_icl_400.npz, the Imperial College Berea) or leave out crop200 and berea400 "
+                             "(--images)")
         return given, []
     found = next((p for p in BEREA400 if p.is_file()), None)
     if found is not None:
