@@ -60,3 +60,16 @@ def test_run_case_beats_on_a_pipe_during_setup(tmp_path, monkeypatch, capsys, pr
         assert beats == []
     else:
         assert any("setting up" in ln for ln in beats), err
+
+
+def test_status_names_each_step_and_the_end_never_a_step_past_the_last():
+    """After the last step the run writes figures: the line must not say 'step 21/20'."""
+    from types import SimpleNamespace
+
+    from porefsi.case.run import _doing
+
+    assert _doing([]).startswith("step 0, setting up")
+    box = [SimpleNamespace(run=SimpleNamespace(step_index=3, n_steps=20))]
+    assert _doing(box) == "step 4/20"
+    box[0].run.step_index = 20
+    assert _doing(box) == "all 20 steps done, writing outputs and figures"

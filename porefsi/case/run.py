@@ -230,6 +230,8 @@ def _doing(sofar_box: list) -> str:
     run = sofar_box[0].run if sofar_box and sofar_box[0].run is not None else None
     if run is None:
         return "step 0, setting up (image, network, mesh, solid, interface)"
+    if run.step_index >= run.n_steps:
+        return f"all {run.n_steps} steps done, writing outputs and figures"
     return f"step {run.step_index + 1}/{run.n_steps}"
 
 
