@@ -15,7 +15,47 @@ import numpy as np
 
 from porefsi.units import MILLIDARCY
 
-__all__ = ["plot_timeseries", "plot_psd", "plot_pc_s", "plot_drainage_pc_s", "render_network", "render_solid", "Style"]
+__all__ = ["plot_timeseries", "plot_psd", "plot_pc_s", "plot_drainage_pc_s", "render_network", "render_solid", "Style",
+           "si_scale"]
+
+_PREFIXES = ((1e-12, "p"), (1e-9, "n"), (1e-6, "µ"), (1e-3, "m"), (1.0, ""), (1e3, "k"), (1e6, "M"), (1e9, "G"))
+
+
+def si_scale(values, unit: str) -> tuple[float, str]:
+    """The SI prefix that puts the largest magnitude of ``values`` between 1 and 1000.
+
+    Parameters
+    ----------
+    values : array_like
+        Values in the base unit (e.g. metres, pascals); NaN and inf are ignored.
+    unit : str
+        The base unit's symbol (``"m"``, ``"Pa"``, ``"N"``).
+
+    Returns
+    -------
+    scale : float
+        Multiply ``values`` by this to express them in the returned unit.
+    unit : str
+        Prefixed unit, e.g. ``"pm"`` for displacements of a few 1e-12 m; the base unit when every
+        value is zero or not finite.
+
+    Examples
+    --------
+    >>> si_scale([6.9e-12, 1e-13], "m")
+    (1000000000000.0, 'pm')
+    >>> si_scale([2734.6], "Pa")
+    (0.001, 'kPa')
+    """
+    v = np.abs(np.asarray(values, float))
+    v = v[np.isfinite(v)]
+    top = float(v.max()) if v.size else 0.0
+    if top == 0.0:
+        return 1.0, unit
+    factor, prefix = _PREFIXES[0]
+    for f, pre in _PREFIXES:
+        if top >= f * (1 - 1e-9):
+            factor, prefix = f, pre
+    return 1.0 / factor, prefix + unit
 
 
 def _plt():
@@ -45,17 +85,24 @@ def plot_timeseries(ts: Mapping[str, Sequence[float]], path: str | Path, *, titl
         ("sw", "wetting saturation", 1.0),
         ("inlet_pressure_Pa", "inlet pressure (kPa)", 1e-3),
         ("capillary_pressure_Pa", "capillary pressure (kPa)", 1e-3),
-        ("total_pore_force_N", "total pore force (mN)", 1e3),
-        ("max_displacement_m", "max displacement (nm)", 1e9),
-        ("max_von_mises_Pa", "max von Mises (MPa)", 1e-6),
+        ("total_pore_force_N", "total pore force", "N"),
+        ("max_displacement_m", "max displacement", "m"),
+        ("max_von_mises_Pa", "max von Mises", "Pa"),
         ("permeability_m2", "permeability (mD)", 1.0 / MILLIDARCY),
     ]
     panels = [p for p in panels if p[0] in ts]
+    for i, (key, label, scale) in enumerate(panels):  # a unit the run's own magnitudes read well in
+        if isinstance(scale, str):
+            factor, unit = si_scale(ts[key], scale)
+            panels[i] = (key, f"{label} ({unit})", factor)
     ncol = 2
     nrow = max(1, (len(panels) + 1) // ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(10, 2.6 * nrow), squeeze=False, sharex=True)
     for ax, (key, label, scale) in zip(axes.ravel(), panels, strict=False):
-        ax.plot(t, np.asarray(ts[key], float) * scale, "-", lw=1.5)
+        y = np.asarray(ts[key], float) * scale
+        if key == "permeability_m2":
+            y, label = _relative_change(y)
+        ax.plot(t, y, "-", lw=1.5)
         ax.set_ylabel(label)
         ax.ticklabel_format(axis="y", useOffset=False)  # tiny changes (e.g. k over a run) stay readable
         ax.grid(alpha=0.3)
@@ -71,6 +118,20 @@ def plot_timeseries(ts: Mapping[str, Sequence[float]], path: str | Path, *, titl
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def _relative_change(k_mD: np.ndarray) -> tuple[np.ndarray, str]:
+    """Permeability as its change from the first value (%, or ppm when below 0.01 %), and the label.
+
+    A run's permeability moves by parts per million to a few per cent: plotted in mD, a 1e-8 change
+    shows as an axis of seven-digit labels.
+    """
+    k0 = k_mD[np.isfinite(k_mD)][0] if np.isfinite(k_mD).any() else np.nan
+    if not np.isfinite(k0) or k0 == 0:
+        return k_mD, "permeability (mD)"
+    rel = k_mD / k0 - 1.0
+    big = np.nanmax(np.abs(rel)) >= 1e-4
+    return rel * (1e2 if big else 1e6), f"permeability change ({'%' if big else 'ppm'} of {k0:.4g} mD)"
 
 
 def plot_psd(radii_at: Sequence[tuple[float, np.ndarray]], path: str | Path, *, bins: int = 25) -> Path:
@@ -173,6 +234,21 @@ def _pv():
     return pv
 
 
+def _bar(label: str) -> dict:
+    """Scalar-bar options: vertical at the right edge, title above, three significant digits.
+
+    VTK's default font has no µ: it is written ``u`` (as in the axes' ``um``).
+    """
+    return {"title": label.replace("µ", "u") + "\n", "vertical": True, "position_x": 0.86, "position_y": 0.15,
+            "width": 0.05, "height": 0.6, "fmt": "%.3g", "title_font_size": 14, "label_font_size": 12, "n_labels": 5}
+
+
+def _frame(p) -> None:
+    """Bounding-box axes in µm on the box's outer edges (not through the scene)."""
+    p.show_bounds(xtitle="x (um)", ytitle="y (um)", ztitle="z (um)", font_size=10, location="outer",
+                  n_xlabels=3, n_ylabels=3, n_zlabels=3, fmt="%.0f")
+
+
 @dataclasses.dataclass(frozen=True)
 class Style:
     """How a 3-D scene is coloured and framed (the keyword options of the ``render_*`` functions).
@@ -239,11 +315,11 @@ def render_network(coords, radii, conns, values, path: str | Path, *, fade_above
     if faded.any():
         clim = clim if clim is not None else (float(np.nanmin(vals)), float(np.nanmax(vals)))
         p.add_mesh(spheres(faded), scalars=label or "value", cmap=cmap, clim=clim, opacity=0.15,
-                   show_scalar_bar=faded.all(), scalar_bar_args={"title": label})
+                   show_scalar_bar=faded.all(), scalar_bar_args=_bar(label))
     if not faded.all():
         p.add_mesh(spheres(~faded), scalars=label or "value", cmap=cmap, clim=clim,
-                   scalar_bar_args={"title": label})
-    p.show_bounds(xtitle="x (um)", ytitle="y (um)", ztitle="z (um)", font_size=10)
+                   scalar_bar_args=_bar(label))
+    _frame(p)
     p.camera_position = "iso"
     p.screenshot(str(path))
     p.close()
@@ -293,8 +369,8 @@ def render_solid(points, tets, values, path: str | Path, *, displacement=None, s
     except TypeError:  # pyvista < 0.47 has no `algorithm`
         surf = grid.extract_surface()
     p = pv.Plotter(off_screen=True, window_size=st.window_size)
-    p.add_mesh(surf, scalars=name, cmap=st.cmap or "viridis", clim=st.clim, scalar_bar_args={"title": label})
-    p.show_bounds(xtitle="x (um)", ytitle="y (um)", ztitle="z (um)", font_size=10)
+    p.add_mesh(surf, scalars=name, cmap=st.cmap or "viridis", clim=st.clim, scalar_bar_args=_bar(label))
+    _frame(p)
     p.camera_position = "iso"
     p.screenshot(str(path))
     p.close()

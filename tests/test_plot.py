@@ -37,3 +37,27 @@ def test_offscreen_renders(tmp_path):
     out = plot.render_solid(pts, [[0, 1, 2, 3]], np.arange(4.0), tmp_path / "s.png", label="u",
                             displacement=pts, scale=0.1, window_size=(320, 240))
     assert _png_size(out) == (320, 240)
+
+
+@pytest.mark.parametrize("values, unit, scale, label", [
+    ([6.9e-12, 1e-13], "m", 1e12, "pm"),        # a coupled run's displacements
+    ([2734.6], "Pa", 1e-3, "kPa"),
+    ([1.74e-4, 0.0], "N", 1e6, "µN"),
+    ([999.0], "Pa", 1.0, "Pa"),
+    ([1000.0], "Pa", 1e-3, "kPa"),             # the boundary goes up
+    ([-3e-9, 1e-9], "m", 1e9, "nm"),           # magnitude, not sign
+    ([0.0, np.nan, np.inf], "m", 1.0, "m"),    # nothing finite and non-zero: the base unit
+    ([], "Pa", 1.0, "Pa"),
+])
+def test_si_scale_puts_the_largest_magnitude_between_1_and_1000(values, unit, scale, label):
+    got_scale, got_label = plot.si_scale(values, unit)
+    assert got_label == label and got_scale == pytest.approx(scale, rel=1e-12)
+
+
+def test_permeability_panel_is_a_relative_change():
+    k = np.array([2299.606324, 2299.606323, 2299.606350])
+    y, label = plot._relative_change(k)
+    assert label == "permeability change (ppm of 2300 mD)"
+    assert y == pytest.approx((k / k[0] - 1) * 1e6) and y[-1] == pytest.approx(0.01131, rel=1e-3)
+    y, label = plot._relative_change(np.array([500.0, 490.0, 481.5]))
+    assert label.startswith("permeability change (%") and y[-1] == pytest.approx(-3.7)

@@ -80,20 +80,19 @@ def figures(out: Path, ts: dict, snapshots: list, run: CoupledRun, title: str) -
         made.append(plot.render_network(s["coords"], s["radius"], net0.throat_conns, 1.0 - s["nw_saturation"],
                                         fig / f"drainage_{tag}.png", label="wetting saturation", clim=(0, 1),
                                         fade_above=0.999))
-        # Colour scales stop at the 99th percentile: the extremes sit at a few nodes next to loaded pores.
-        mag = np.linalg.norm(s["displacement"], axis=1) * 1e9
-        made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, mag,
-                                      fig / f"displacement_{tag}.png", label="|u| (nm)", cut="y",
-                                      clim=(0.0, max(float(np.percentile(mag, 99)), 1e-30))))
-        fn = np.linalg.norm(s["force"], axis=1) * 1e9
-        made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, fn,
-                                      fig / f"pore_force_{tag}.png", label="|pore force| (nN)", cmap="inferno",
-                                      cut="y", clim=(0.0, max(float(np.percentile(fn[fn > 0], 99)) if np.any(fn > 0)
-                                                          else 0.0, 1e-30))))
-        vm = s["von_mises"] * 1e-6
-        made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, vm,
-                                      fig / f"von_mises_{tag}.png", label="von Mises (MPa)", cmap="magma", cut="y",
-                                      clim=(0.0, max(float(np.percentile(vm, 99)), 1e-30))))
+        # Magnitudes (VTK's font has no '|'). Colour scales stop at the 99th percentile: the extremes sit
+        # at a few nodes next to loaded pores.
+        fn = np.linalg.norm(s["force"], axis=1)
+        for name, vals, what, unit, cmap in (
+                ("displacement", np.linalg.norm(s["displacement"], axis=1), "displacement", "m", "viridis"),
+                ("pore_force", fn, "pore force", "N", "inferno"),
+                ("von_mises", s["von_mises"], "von Mises", "Pa", "magma")):
+            shown = vals[vals > 0] if name == "pore_force" else vals
+            top = float(np.percentile(shown, 99)) if shown.size else 0.0
+            factor, u = plot.si_scale([top], unit)
+            made.append(plot.render_solid(run.problem.mesh.points, run.problem.mesh.tets, vals * factor,
+                                          fig / f"{name}_{tag}.png", label=f"{what} ({u})", cmap=cmap, cut="y",
+                                          clim=(0.0, max(top * factor, 1e-30))))
     return [str(p.relative_to(out)) for p in made]
 
 
