@@ -82,20 +82,36 @@ def run_blocks(args) -> None:
         plan[axis] = (side, choose_blocks(image.pore, "xyz".index(axis), args.blocks, side))
     out = Path(args.out)
     done = _done(out)
-    t0 = time.perf_counter()
+    if args.rank_by_k1:
+        plan = {axis: (side, _rank_by_k1(out, axis, side, chosen)) for axis, (side, chosen) in plan.items()}
+    t0, longest = time.perf_counter(), 0.0
     for i in range(args.blocks):
         for axis in axes:
             side, chosen = plan[axis]
             if i >= len(chosen) or (axis, tuple(chosen[i][0]), levels, side) in done:
                 continue
-            if args.time_limit and time.perf_counter() - t0 > args.time_limit:
-                print("time limit reached: rerun to continue", flush=True)
+            if args.time_limit and time.perf_counter() - t0 + longest > args.time_limit:
+                print("time limit reached (the slowest block so far would not finish): rerun to continue", flush=True)
                 return
+            t_block = time.perf_counter()
             row = _solve_block(image, axis, chosen[i], side, levels, args.rtol)
+            longest = max(longest, time.perf_counter() - t_block)
             row["image"] = str(args.image)
             with out.open("a") as fh:
                 fh.write(json.dumps(row) + "\n")
             print(json.dumps(row), flush=True)
+
+
+def _rank_by_k1(out: Path, axis: str, side: int, chosen: list) -> list:
+    """``chosen`` sorted by the blocks' level-1 k in ``out`` (largest first: the blocks that carry the most
+    flow, whose share of the pooled sums is largest); blocks without a level-1 row keep their order, last."""
+    k1 = {}
+    if out.exists():
+        for line in out.read_text().splitlines():
+            r = json.loads(line) if line.strip() else None
+            if r and r["axis"] == axis and r["side"] == side and 1 in r["levels"]:
+                k1[tuple(r["origin"])] = r["k_mD"][r["levels"].index(1)]
+    return sorted(chosen, key=lambda c: -k1.get(tuple(c[0]), -1.0))
 
 
 def _solve_block(image, axis, chosen, side, levels, rtol) -> dict:
@@ -111,58 +127,102 @@ def _solve_block(image, axis, chosen, side, levels, rtol) -> dict:
             "load": _load(), "wall": r.info["wall"]}
 
 
-def summarise(args) -> dict:
-    """Pool the blocks of ``args.out`` per axis and correct the native k."""
-    rows = [json.loads(line) for line in Path(args.path).read_text().splitlines() if line.strip()]
-    native = {}
-    if args.native_json:
-        native = json.loads(Path(args.native_json).read_text())["k_mD"]
-    summary = {}
+def _merge(rows) -> dict:
+    """Per axis: ``(side, levels, origins, k)`` with ``k`` (K, n_levels) in mD, NaN where a level was not
+    solved on a block; rows of the same block (axis, origin, side) at different levels are merged."""
+    out = {}
     for axis in sorted({r["axis"] for r in rows}):
-        rs = [r for r in rows if r["axis"] == axis]
-        levels = rs[0]["levels"]
-        factor, se, gci, pooled, blocks = pool_blocks([r["origin"] for r in rs], rs[0]["side"],
-                                                      [r["k_mD"] for r in rs], levels)
+        by_block = {}
+        for r in rows:
+            if r["axis"] == axis:
+                ks = by_block.setdefault((tuple(r["origin"]), r["side"]), {})
+                ks.update(zip(r["levels"], r["k_mD"], strict=True))
+        sides = {side for _, side in by_block}
+        if len(sides) > 1:
+            raise SystemExit(f"axis {axis}: blocks of several sides {sorted(sides)}; summarise one side at a time")
+        levels = sorted({f for ks in by_block.values() for f in ks})
+        origins, k = [], []
+        for (o, _), ks in by_block.items():
+            run = [ks.get(f, math.nan) for f in levels]
+            n = next((i for i, v in enumerate(run) if math.isnan(v)), len(run))  # leading run only
+            origins.append(o)
+            k.append(run[:n] + [math.nan] * (len(run) - n))
+        out[axis] = (sides.pop(), levels, origins, np.array(k))
+    return out
+
+
+def _axis_summary(side, levels, origins, k, k1, order=None) -> dict:
+    """One axis: pooled sums, observed orders, factor, corrected k and its band (mD)."""
+    factor, se, gci, pooled, blocks = pool_blocks(origins, side, k, levels, order=order)
+    full = np.all(np.isfinite(k), axis=1)
+    s = {"blocks": len(origins), "complete": int(full.sum()), "side": side, "levels": levels,
+         "S_solved_mD": [round(float(v), 1) for v in np.nansum(k, axis=0)],  # over the blocks solved there
+         "solved_per_level": [int(v) for v in np.isfinite(k).sum(axis=0)],
+         "S_complete_mD": [round(float(v), 1) for v in k[full].sum(axis=0)],
+         "complete_share_of_S1": float(k[full, 0].sum() / k[:, 0].sum()),
+         "factor": factor, "se": se, "gci": gci, "order": pooled.order, "order_observed": pooled.order_observed,
+         "observed_order_last3_complete": pooled.observed_order,
+         "block_factors": [round(b.factor, 4) for b in blocks], "block_k1_mD": [round(b.k_mD[0], 1) for b in blocks]}
+    if len(levels) >= 3:
+        three = np.all(np.isfinite(k[:, :3]), axis=1)
+        s["observed_order_123_all"] = richardson(levels[:3], k[three, :3].sum(axis=0)).observed_order
+    if k1:
         unc = math.hypot(2 * se, gci)
-        k1 = native.get(axis, args.native)
-        s = {"blocks": len(rs), "side": rs[0]["side"], "levels": levels, "factor": factor, "se": se, "gci": gci,
-             "order": pooled.order, "order_observed": pooled.order_observed,
-             "block_factors": [round(b.factor, 4) for b in blocks],
-             "block_k1_mD": [round(b.k_mD[0], 1) for b in blocks], "cpu_s": sum(r["cpu_s"] for r in rs)}
-        if k1:
-            s.update(native_mD=k1, k_mD=factor * k1, uncertainty_mD=unc * k1)
-            if axis in DNS and "berea" in rs[0]["image"]:
-                s["vs_dns_axis"] = factor * k1 / DNS[axis]
+        s.update(native_mD=k1, k_mD=factor * k1, uncertainty_mD=unc * k1)
+    return s
+
+
+def summarise(args) -> dict:
+    """Pool the blocks of ``args.path`` per axis and correct the native k (``--levels`` picks the levels used)."""
+    rows = [json.loads(line) for line in Path(args.path).read_text().splitlines() if line.strip()]
+    native = json.loads(Path(args.native_json).read_text())["k_mD"] if args.native_json else {}
+    merged = _merge(rows)
+    if args.levels:
+        keep = _levels(args.levels)
+        for axis, (side, levels, origins, k) in merged.items():
+            cols = [levels.index(f) for f in keep if f in levels]
+            merged[axis] = (side, [levels[c] for c in cols], origins, k[:, cols])
+    summary = {}
+    for axis, (side, levels, origins, k) in merged.items():
+        s = _axis_summary(side, levels, origins, k, native.get(axis, args.native))
+        s["cpu_s"] = sum(r["cpu_s"] for r in rows if r["axis"] == axis and set(r["levels"]) <= set(levels))
+        if "k_mD" in s and axis in DNS and "berea" in rows[0]["image"]:
+            s["vs_dns_axis"] = s["k_mD"] / DNS[axis]
         summary[axis] = s
         print(axis, json.dumps(s), flush=True)
-    axes = [a for a in summary if a in DNS and "k_mD" in summary[a]]
-    if len(axes) == 3:
-        mean = sum(summary[a]["k_mD"] for a in axes) / 3
-        unc = sum(summary[a]["uncertainty_mD"] for a in axes) / 3  # the axes' GCIs are not independent
-        summary["mean"] = {"k_mD": mean, "uncertainty_mD": unc, "vs_dns_mean": mean / 1286.0,
-                           "vs_dns_range": [(mean - unc) / 1286.0, (mean + unc) / 1286.0]}
-        print("mean", json.dumps(summary["mean"]), flush=True)
-    _order_variants(rows, native, summary)
+    _mean(summary, "mean")
+    _order_variants(merged, native, summary)
     return summary
 
 
-def _order_variants(rows, native, summary) -> None:
-    """Factors of every axis at the order observed on all axes' blocks pooled, and at p = 1, 1.5, 2."""
-    axes = sorted({r["axis"] for r in rows})
-    levels = rows[0]["levels"]
-    if len(levels) < 3:
+def _mean(summary: dict, key: str) -> None:
+    """Three-axis mean of ``summary``'s corrected k against the DNS mean (the axes' bands averaged, not
+    combined in quadrature: their GCIs are not independent)."""
+    axes = [a for a in "xyz" if a in summary and "k_mD" in summary[a]]
+    if len(axes) == 3:
+        mean = sum(summary[a]["k_mD"] for a in axes) / 3
+        unc = sum(summary[a]["uncertainty_mD"] for a in axes) / 3
+        summary[key] = {"k_mD": mean, "uncertainty_mD": unc, "vs_dns_mean": mean / 1286.0,
+                        "vs_dns_range": [(mean - unc) / 1286.0, (mean + unc) / 1286.0]}
+        print(key, json.dumps(summary[key]), flush=True)
+
+
+def _order_variants(merged, native, summary) -> None:
+    """Every axis at the order observed on all axes' complete blocks pooled, and at p = 1, 1.5, 2."""
+    complete = [k[np.all(np.isfinite(k), axis=1)] for _, _, _, k in merged.values()]
+    levels = next(iter(merged.values()))[1]
+    if len(levels) < 3 or any(lv != levels for _, lv, _, _ in merged.values()):
         return
-    pooled_all = richardson(levels, np.sum([r["k_mD"] for r in rows], axis=0))
-    variants = {"all-axes observed": pooled_all.order, "p=1": 1.0, "p=1.5": 1.5, "p=2": 2.0}
-    for name, p in variants.items():
-        ks = {}
-        for axis in axes:
-            rs = [r for r in rows if r["axis"] == axis]
-            f = pool_blocks([r["origin"] for r in rs], rs[0]["side"], [r["k_mD"] for r in rs], levels, order=p)[0]
-            ks[axis] = (round(f, 4), round(f * native[axis], 1) if axis in native else None)
-        mean = (sum(v[1] for v in ks.values()) / 3 if len(ks) == 3 and all(v[1] for v in ks.values()) else None)
-        out = {"order": round(p, 3), "factor, k_mD per axis": ks, "mean_mD": mean,
-               "vs_dns_mean": mean / 1286.0 if mean else None}
+    pooled_all = richardson(levels, np.sum([c.sum(axis=0) for c in complete], axis=0))
+    for name, p in {"all-axes observed": pooled_all.observed_order, "p=1": 1.0, "p=1.5": 1.5, "p=2": 2.0}.items():
+        if not (p > 0):
+            continue
+        var = {axis: _axis_summary(side, lv, o, k, native.get(axis), order=p)
+               for axis, (side, lv, o, k) in merged.items()}
+        _mean(var, "mean")
+        out = {"order": round(p, 3), "factor, k_mD per axis": {a: (round(v["factor"], 4), round(v.get("k_mD", 0), 1))
+                                                                for a, v in var.items() if a != "mean"},
+               "mean_mD": var.get("mean", {}).get("k_mD"), "vs_dns_mean": var.get("mean", {}).get("vs_dns_mean")}
         summary[f"variant {name}"] = out
         print(f"variant {name}", json.dumps(out), flush=True)
 
@@ -257,11 +317,15 @@ def main(argv=None):
     b.add_argument("--block", type=int, default=None)
     b.add_argument("--rtol", type=float, default=1e-6)
     b.add_argument("--out", required=True)
-    b.add_argument("--time-limit", type=float, default=0.0, help="stop starting blocks after this many seconds")
+    b.add_argument("--time-limit", type=float, default=0.0,
+                   help="start no block that would end after this many seconds, judged by the slowest block so far")
+    b.add_argument("--rank-by-k1", action="store_true",
+                   help="solve the blocks in order of their level-1 k in --out, largest first (e.g. --levels 4)")
     s = sub.add_parser("summarise")
     s.add_argument("path")
     s.add_argument("--native", type=float, default=None)
     s.add_argument("--native-json", default=None)
+    s.add_argument("--levels", default=None, help="use only these levels (e.g. 1,2,3: the earlier estimate)")
     v = sub.add_parser("validate")
     v.add_argument("--cases", default="blobs,spheres,berea")
     v.add_argument("--n", type=int, default=80)

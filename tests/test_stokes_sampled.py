@@ -77,6 +77,45 @@ def test_pooled_factor_is_the_flow_weighted_mean_of_block_factors():
     assert f2 == pytest.approx(factor, rel=1e-9)
 
 
+def test_pooling_blocks_with_the_finest_level_on_some_of_them():
+    # k_f = a (1 + c f^-2), exact limit a, levels 1-4 with level 4 solved on the two blocks carrying
+    # the most flow only: the order is observed (2, 3, 4) on those, every block extrapolated at it
+    # from its own last two levels, so the factor is still exact; the GCI is 1.25 x the complete
+    # blocks' last step plus 3 x the others' (their order is borrowed)
+    a, c = np.array([100.0, 10.0, 1.0, 3.0]), np.array([0.1, 0.2, 0.5, 0.3])
+    levels = (1, 2, 3, 4)
+    k = a[:, None] * (1 + c[:, None] * np.array(levels, float) ** -2.0)
+    k[2:, 3] = np.nan
+    factor, se, gci, pooled, blocks = pool_blocks([(0, 0, 0)] * 4, 8, k, levels)
+    assert pooled.order_observed and pooled.order == pytest.approx(2.0, rel=1e-7)
+    assert pooled.values == pytest.approx(k[:2].sum(axis=0), rel=1e-12)
+    assert factor == pytest.approx(a.sum() / k[:, 0].sum(), rel=1e-9)
+    assert [b.k_inf_mD for b in blocks] == pytest.approx(a, rel=1e-9)
+    assert [len(b.k_mD) for b in blocks] == [4, 4, 3, 3]
+    want = (1.25 * abs(np.sum(k[:2, 3] - k[:2, 2])) / ((4 / 3) ** 2 - 1)
+            + 3.0 * abs(np.sum(k[2:, 2] - k[2:, 1])) / ((3 / 2) ** 2 - 1)) / k[:, 0].sum()
+    assert gci == pytest.approx(want, rel=1e-7)
+    # all blocks complete: the same as before (one group, the pooled GCI)
+    full = a[:, None] * (1 + c[:, None] * np.array(levels, float) ** -2.0)
+    f_full, _, g_full, p_full, _ = pool_blocks([(0, 0, 0)] * 4, 8, full, levels)
+    assert f_full == pytest.approx(factor, rel=1e-9) and g_full == pytest.approx(p_full.uncertainty / full[:, 0].sum())
+    # a level missing before a solved one, a block with one level, or no complete block: refused
+    for bad in (np.where(np.arange(4) == 1, np.nan, full), np.where(np.arange(4) >= 1, np.nan, full),
+                np.where(np.arange(4) == 3, np.nan, full)):
+        with pytest.raises(InputError, match="leading run"):
+            pool_blocks([(0, 0, 0)] * 4, 8, bad, levels)
+
+
+def test_sampled_with_four_levels_takes_the_order_from_the_last_three():
+    img = _blobs(n=16, sigma=1.2, porosity=0.4, seed=2)
+    s = sampled_permeability(img, "x", levels=(1, 2, 3, 4), blocks=2, block=8, native=100.0)
+    k = np.array([b.k_mD for b in s.blocks])
+    assert k.shape == (2, 4) and s.levels == (1, 2, 3, 4) and s.pooled.values == pytest.approx(k.sum(axis=0))
+    assert s.pooled.observed_order == pytest.approx(sm.richardson((2, 3, 4), k[:, 1:].sum(axis=0)).observed_order)
+    assert s.factor == pytest.approx(pool_blocks([b.origin for b in s.blocks], 8, k, (1, 2, 3, 4))[0], rel=1e-12)
+    assert s.k_mD == pytest.approx(100.0 * s.factor, rel=1e-12) and 0.5 < s.factor < 1.0
+
+
 def test_choose_blocks_skips_blocks_without_flow_and_spreads_over_axes():
     a = np.ones((32, 32, 32), np.uint8)
     a[:, 16:, 16:] = 0  # the lattice cells with j, k >= 16 are solid

@@ -17,8 +17,11 @@ discretisation error on :math:`K` sub-blocks that do fit:
    options as the whole image (its side faces, cut from the rock, are no-slip walls).
 3. **Pooling**: the block permeabilities are summed per level, :math:`S_f = \sum_b k_{f,b}`, and
    the sequence :math:`S_f` is Richardson-extrapolated (:func:`porefsi.stokes.richardson`: the
-   observed order from three levels) to :math:`S_\infty`. The factor is
-   :math:`F = S_\infty / S_1` and the estimate :math:`k = F k_1`.
+   observed order from the last three levels) to :math:`S_\infty`. The factor is
+   :math:`F = S_\infty / S_1` and the estimate :math:`k = F k_1`. With levels 1, 2, 3, 4 the order
+   comes from 2, 3, 4, where rock sequences are closer to asymptotic than from 1, 2, 3;
+   :func:`pool_blocks` also pools blocks whose finest level was solved on only some of them (the
+   order from the complete ones, the others extrapolated at it from their own last two levels).
 
 Why the pooled ratio. The whole image's k is a degree-one homogeneous function of the local
 conductances, so by Euler's theorem a relative change :math:`\epsilon_b` of the conductance of
@@ -63,7 +66,7 @@ from porefsi.stokes._refine_grid import (
     refined_memory_bytes,
 )
 from porefsi.stokes.permeability import StokesOptions, stokes_options, voxel_permeability
-from porefsi.stokes.refine import Extrapolation, richardson
+from porefsi.stokes.refine import SAFETY_ASSUMED, SAFETY_OBSERVED, Extrapolation, richardson
 from porefsi.units import MILLIDARCY
 
 __all__ = ["SampledBlock", "SampledExtrapolation", "choose_blocks", "block_side", "sampled_permeability",
@@ -91,7 +94,7 @@ class SampledBlock:
     connected_porosity : float
         Pore fraction of the block's flowing clusters.
     k_mD : tuple of float
-        Block permeability at each level, mD.
+        Block permeability at each level solved (a leading run of the levels), mD.
     k_inf_mD : float
         Richardson value at the pooled order, mD.
     factor : float
@@ -236,40 +239,57 @@ def choose_blocks(pore: np.ndarray, axis: int, count: int, side: int) -> list:
 def pool_blocks(origins, side: int, k_levels, levels, cpu=None, porosity=None, order=None) -> tuple:
     """Pooled factor of blocks solved at ``levels``: ``(factor, se, gci, pooled, blocks)``.
 
+    Every block must be solved at a leading run of ``levels`` (at least two); the finer levels may
+    be missing (NaN) on some blocks, e.g. ``levels`` (1, 2, 3, 4) with level 4 solved only on the
+    blocks that carry the most flow. The order is observed from the pooled sums of the *complete*
+    blocks (``pooled``, :func:`porefsi.stokes.richardson`: from the last three levels, so from
+    2, 3, 4 when four are given) and every block is extrapolated at that order from its own last two
+    levels. The grid-convergence index adds, over the groups of blocks sharing their finest level,
+    ``Fs |S_last - S_prev| / ((f_last/f_prev)^p - 1)``; ``Fs`` is the pooled one (1.25 if the order
+    was observed and trusted) for the complete blocks and 3 for the others (the order is borrowed).
+
     Parameters
     ----------
     origins : sequence of 3-tuples
     side : int
     k_levels : array_like, shape (K, n_levels)
-        Block permeability at each level (any unit).
+        Block permeability at each level (any unit); NaN for levels not solved (trailing only).
     levels : sequence of int
         Starting at 1.
     cpu, porosity : sequences of float, optional
         Per block, for the report.
     order : float, optional
-        Convergence order (default: observed from the pooled sums, see
+        Convergence order (default: observed from the complete blocks' pooled sums, see
         :func:`porefsi.stokes.richardson`).
     """
     k = np.asarray(k_levels, float)
-    n_blocks = k.shape[0]
-    if k.ndim != 2 or k.shape[1] != len(levels) or n_blocks < 1 or not np.all(np.isfinite(k)) or np.any(k <= 0):
-        raise InputError(f"k_levels must be positive, one row per block and one column per level, got {k.shape}")
-    pooled = richardson(levels, k.sum(axis=0), order=order)
-    p, (f_prev, f_last) = pooled.order, levels[-2:]
-    k_inf = k[:, -1] + (k[:, -1] - k[:, -2]) / ((f_last / f_prev) ** p - 1.0)
-    factor = pooled.value / k[:, 0].sum()
+    solved = np.isfinite(k).sum(axis=1) if k.ndim == 2 else np.zeros(0, int)
+    if k.ndim != 2 or k.shape[1] != len(levels) or k.shape[0] < 1 or np.any(k[np.isfinite(k)] <= 0) \
+            or np.any(solved < 2) or not np.all(np.isfinite(k)[np.arange(k.shape[1]) < solved[:, None]]) \
+            or not np.any(solved == len(levels)):
+        raise InputError("k_levels must be positive, one row per block and one column per level, each row solved "
+                         f"at a leading run of >= 2 levels (NaN after), one row complete; got {k.shape}")
+    n_blocks, full = k.shape[0], solved == len(levels)
+    pooled = richardson(levels, k[full].sum(axis=0), order=order)
+    p, k_inf, gci = pooled.order, np.empty(n_blocks), 0.0
+    for n in np.unique(solved):
+        rows, (f_prev, f_last) = solved == n, levels[n - 2:n]
+        denom = (f_last / f_prev) ** p - 1.0
+        k_inf[rows] = k[rows, n - 1] + (k[rows, n - 1] - k[rows, n - 2]) / denom
+        fs = (SAFETY_OBSERVED if pooled.order_observed else SAFETY_ASSUMED) if n == len(levels) else SAFETY_ASSUMED
+        gci += fs * abs(np.sum(k[rows, n - 1] - k[rows, n - 2])) / denom
+    factor = k_inf.sum() / k[:, 0].sum()
     if n_blocks > 1:
         resid = k_inf - factor * k[:, 0]
         se = float(np.sqrt(np.sum(resid**2) / (n_blocks * (n_blocks - 1))) / k[:, 0].mean())
     else:
         se = float("nan")
-    gci = pooled.uncertainty / k[:, 0].sum()
     cpu = [float("nan")] * n_blocks if cpu is None else cpu
     porosity = [float("nan")] * n_blocks if porosity is None else porosity
-    blocks = tuple(SampledBlock(tuple(int(v) for v in o), int(side), float(phi), tuple(float(v) for v in row),
+    blocks = tuple(SampledBlock(tuple(int(v) for v in o), int(side), float(phi), tuple(float(v) for v in row[:n]),
                                 float(ki), float(ki / row[0]), float(c))
-                   for o, row, ki, c, phi in zip(origins, k, k_inf, cpu, porosity, strict=True))
-    return float(factor), se, float(gci), pooled, blocks
+                   for o, row, n, ki, c, phi in zip(origins, k, solved, k_inf, cpu, porosity, strict=True))
+    return float(factor), se, float(gci / k[:, 0].sum()), pooled, blocks
 
 
 def _native_k(image: VoxelImage, ax: int, native, opts: StokesOptions):
