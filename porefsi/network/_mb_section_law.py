@@ -51,34 +51,36 @@ def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
     one voxel face of the plane), each point read at its nearest voxel. ``seed`` = (s0, t0, la, lb):
     from the grid point (s0, t0), the 4-connected set of points whose voxel is pore (walled map,
     ``box``) and belongs to pore ``la`` or ``lb`` is counted, up to ``cap`` points (the count
-    then returns ``cap``). ``work``: scratch arrays (seen (W, W) uint8; stack and trail (W * W,)
-    int32, flat grid indices), ``W`` odd, the grid centred on s = t = 0 (points beyond it are not
-    visited); ``seen`` is all zero on entry and on return. The inner loop reads the voxel inline (the
-    :func:`_grid_voxel` and :func:`_in_channel` tests, no calls per point).
+    then returns ``cap``). ``work``: scratch arrays (seen (W * 256,) uint8; stack and trail
+    (W * W,) int32, grid keys ``(s + h) * 256 + t + h``, ``h = W // 2``), ``W`` odd and at most 255,
+    the grid centred on s = t = 0 (points beyond it are not visited); ``seen`` is all zero on entry
+    and on return. The inner loop reads the voxel inline (the :func:`_grid_voxel` and
+    :func:`_in_channel` tests, no calls per point) and decodes keys with shifts, not divisions.
     """
     seen, stack, trail = work
-    w = seen.shape[0]
-    h = w // 2
+    h = (seen.size >> 8) >> 1
     nx, ny, nz = dt2.shape
     e1, e2 = plane
     s0, t0, la, lb = seed
     i, j, k = _grid_voxel(x, e1, e2, s0, t0, dt2.shape)
     if abs(s0) > h or abs(t0) > h or not _in_channel(dt2, labels, box, i, j, k, la, lb):
         return 0
-    stack[0] = trail[0] = (s0 + h) * w + t0 + h
-    seen[s0 + h, t0 + h] = 1
+    stack[0] = trail[0] = ((s0 + h) << 8) | (t0 + h)
+    seen[((s0 + h) << 8) | (t0 + h)] = 1
     n_stack, n_trail, count = 1, 1, 0
     while n_stack > 0 and count < cap:
         n_stack -= 1
-        s, t = stack[n_stack] // w - h, stack[n_stack] % w - h
+        key = stack[n_stack]
+        s, t = (key >> 8) - h, (key & 255) - h
         count += 1
         for q in range(4):
             u = s + (q == 0) - (q == 1)
             v = t + (q == 2) - (q == 3)
-            if abs(u) > h or abs(v) > h or seen[u + h, v + h] != 0:
+            nkey = ((u + h) << 8) | (v + h)
+            if abs(u) > h or abs(v) > h or seen[nkey] != 0:
                 continue
-            seen[u + h, v + h] = 1
-            trail[n_trail] = (u + h) * w + v + h
+            seen[nkey] = 1
+            trail[n_trail] = nkey
             n_trail += 1
             i = int(math.floor(x[0] + u * e1[0] + v * e2[0] + 0.5))
             j = int(math.floor(x[1] + u * e1[1] + v * e2[1] + 0.5))
@@ -88,10 +90,10 @@ def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
             # the walled map is 0 only where dt2 is (its box terms are >= 1)
             lab = labels[i, j, k]
             if lab == la or lab == lb:
-                stack[n_stack] = (u + h) * w + v + h
+                stack[n_stack] = nkey
                 n_stack += 1
     for q in range(n_trail):
-        seen[trail[q] // w, trail[q] % w] = 0
+        seen[trail[q]] = 0
     return count
 
 
@@ -185,7 +187,7 @@ def _law_areas(dt2, labels, geom, offsets, seed, caps, box):
     n_t = conns.shape[0]
     w = 2 * 64 + 1
     for blk in prange((n_t + BLOCK - 1) // BLOCK):
-        work = (np.zeros((w, w), np.uint8), np.zeros(w * w, np.int32), np.zeros(w * w, np.int32))
+        work = (np.zeros(w * 256, np.uint8), np.zeros(w * w, np.int32), np.zeros(w * w, np.int32))
         for q in range(2 * blk * BLOCK, min(2 * n_t, 2 * (blk + 1) * BLOCK)):
             m = offsets[q + 1] - offsets[q]
             pair = (conns[q // 2, 0], conns[q // 2, 1])
