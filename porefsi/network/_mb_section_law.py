@@ -16,7 +16,7 @@ import numpy as np
 
 from porefsi._numba import jit, prange
 from porefsi.network._mb_edt import _d2
-from porefsi.network._mb_sections import SAMPLE_STEP, _nearest, _perp_basis, _section_radius
+from porefsi.network._mb_sections import SAMPLE_STEP, _nearest, _perp_basis, _ridge_radius
 from porefsi.network.geometry import duct_conductance_factor
 from porefsi.network.network import CIRCLE_SHAPE_FACTOR
 
@@ -98,23 +98,41 @@ def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
 
 
 @jit
-def _widest(dt2, x, plane, box, rho):
-    """Grid offset (s, t) of the widest voxel (walled map) within the disc ``s^2 + t^2 <= rho^2``."""
+def _radius_seed(dt2, rad_tab, x, u, plane, box):
+    """The sample's radius, its flood's seed offset (s0, t0) and whether it is in the channel, in one disc scan.
+
+    One pass over the disc ``s^2 + t^2 <= rho^2`` of the ball inscribed at x (``rho`` at x's
+    nearest voxel, walled map ``box``) keeps two maxima of the walled map: that of
+    :func:`porefsi.network._mb_sections._section_radius` (points read at their nearest voxel
+    clipped to the image, the voxel nearest to x winning ties, then the first met), whose ridge
+    estimate (:func:`porefsi.network._mb_sections._ridge_radius`) is the radius, and the flood's
+    seed (points off the image skipped, the first met winning ties). Returns (r, s0, t0, 1), or
+    (0, 0, 0, 0) when x's voxel is solid.
+    """
     e1, e2 = plane
-    dims = dt2.shape
-    best, bs, bt = np.int64(-1), 0, 0
+    nx, ny, nz = dt2.shape
+    a, b, c = _nearest(x[0], nx), _nearest(x[1], ny), _nearest(x[2], nz)
+    best = _d2(dt2, a, b, c, box)
+    rho = rad_tab[best]
+    if rho == 0.0:
+        return 0.0, 0, 0, 0
+    ba, bb, bc = a, b, c
+    wide, bs, bt = np.int64(-1), 0, 0
     h = int(rho)
     for s in range(-h, h + 1):
         for t in range(-h, h + 1):
             if s * s + t * t > rho * rho:
                 continue
-            i, j, k = _grid_voxel(x, e1, e2, s, t, dims)
-            if i < 0:
-                continue
+            fi = int(math.floor(x[0] + s * e1[0] + t * e2[0] + 0.5))
+            fj = int(math.floor(x[1] + s * e1[1] + t * e2[1] + 0.5))
+            fk = int(math.floor(x[2] + s * e1[2] + t * e2[2] + 0.5))
+            i, j, k = min(max(fi, 0), nx - 1), min(max(fj, 0), ny - 1), min(max(fk, 0), nz - 1)
             v = _d2(dt2, i, j, k, box)
             if v > best:
-                best, bs, bt = v, s, t
-    return bs, bt
+                best, ba, bb, bc = v, i, j, k
+            if v > wide and i == fi and j == fj and k == fk:
+                wide, bs, bt = v, s, t
+    return _ridge_radius(dt2, rad_tab, ba, bb, bc, u, box), bs, bt, 1
 
 
 @jit
@@ -136,9 +154,10 @@ def _law_radii(dt2, rad_tab, geom, offsets, box):
     :func:`porefsi.network._mb_sections._lengths`, zero parts for a side not integrated). Each
     sample reads the radius of :func:`porefsi.network._mb_sections._section_radius` (the ridge
     estimate of the widest channel voxel within the ball inscribed at the sample, in the plane
-    normal to the side) and the grid offset of that widest voxel (:func:`_widest`), where
-    :func:`_law_areas` starts the sample's plane flood. Sides run on numba's threads (``prange``);
-    each sample is computed alone, so the result does not depend on the number of threads.
+    normal to the side) and the grid offset of the widest voxel on the image in that disc, where
+    :func:`_law_areas` starts the sample's plane flood, both in one scan (:func:`_radius_seed`).
+    Sides run on numba's threads (``prange``); each sample is computed alone, so the result does
+    not depend on the number of threads.
 
     Parameters
     ----------
@@ -158,17 +177,12 @@ def _law_radii(dt2, rad_tab, geom, offsets, box):
     n_s = offsets[-1]
     r_out = np.zeros(n_s, np.float64)
     seed = np.zeros((n_s, 3), np.int32)
-    dims = dt2.shape
     for q in prange(offsets.size - 1):
         m = offsets[q + 1] - offsets[q]
         for j in range(m):
             x, u, plane = _sample_point(centre[conns[q // 2, q % 2]], point[q // 2], j, m)
-            r_out[offsets[q] + j] = _section_radius(dt2, rad_tab, x, u, plane, box, False)
-            a, b, c = _nearest(x[0], dims[0]), _nearest(x[1], dims[1]), _nearest(x[2], dims[2])
-            rho = rad_tab[_d2(dt2, a, b, c, box)]
-            if rho > 0.0:
-                seed[offsets[q] + j, 0], seed[offsets[q] + j, 1] = _widest(dt2, x, plane, box, rho)
-                seed[offsets[q] + j, 2] = 1
+            i = offsets[q] + j
+            r_out[i], seed[i, 0], seed[i, 1], seed[i, 2] = _radius_seed(dt2, rad_tab, x, u, plane, box)
     return r_out, seed
 
 
