@@ -44,44 +44,44 @@ def _in_channel(dt2, labels, box, i, j, k, la, lb):
 
 
 @jit
-def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
+def _plane_area(dt2, labels, box, x, plane, seed, limits, work):
     """Area (voxel faces) of the channel's section through x in the plane spanned by ``plane``.
 
     The plane is sampled on the unit grid ``x + s e1 + t e2`` (integers s, t; each point stands for
     one voxel face of the plane), each point read at its nearest voxel. ``seed`` = (s0, t0, la, lb):
     from the grid point (s0, t0), the 4-connected set of points whose voxel is pore (walled map,
     ``box``) and belongs to pore ``la`` or ``lb`` is counted, up to ``cap`` points (the count
-    then returns ``cap``). ``work``: scratch arrays (seen (W * 256,) uint8; stack and trail
-    (W * W,) int32, grid keys ``(s + h) * 256 + t + h``, ``h = W // 2``), ``W`` odd and at most 255,
-    the grid centred on s = t = 0 (points beyond it are not visited); ``seen`` is all zero on entry
-    and on return. The inner loop reads the voxel inline (the :func:`_grid_voxel` and
-    :func:`_in_channel` tests, no calls per point) and decodes keys with shifts, not divisions.
+    then returns ``cap``); ``limits`` = (cap, stamp). ``work`` = (seen, stack): ``seen``
+    (:func:`_flood_scratch`, int32 (W + 2) * 256, grid point (s, t) at ``(s + h + 1) * 256 + t + h
+    + 1``, ``h = W // 2``, W odd and at most 253) holds the stamp of the flood that last visited
+    each point, and its border (one point around the grid) holds the largest int32, so a point is
+    new to this flood when its entry is below ``stamp`` (every flood sharing the scratch takes a
+    larger stamp: no reset, no bounds test per point); ``stack`` int32 (W * W,). Points beyond the
+    grid are not visited. The inner loop reads the voxel inline (no calls per point) and moves
+    between keys by adding 1 or 256 (no divisions).
     """
-    seen, stack, trail = work
-    h = (seen.size >> 8) >> 1
+    seen, stack = work
+    cap, stamp = limits
+    h = ((seen.size >> 8) - 2) >> 1
     nx, ny, nz = dt2.shape
     e1, e2 = plane
     s0, t0, la, lb = seed
     i, j, k = _grid_voxel(x, e1, e2, s0, t0, dt2.shape)
     if abs(s0) > h or abs(t0) > h or not _in_channel(dt2, labels, box, i, j, k, la, lb):
         return 0
-    stack[0] = trail[0] = ((s0 + h) << 8) | (t0 + h)
-    seen[((s0 + h) << 8) | (t0 + h)] = 1
-    n_stack, n_trail, count = 1, 1, 0
+    stack[0] = ((s0 + h + 1) << 8) | (t0 + h + 1)
+    seen[stack[0]] = stamp
+    n_stack, count = 1, 0
     while n_stack > 0 and count < cap:
         n_stack -= 1
         key = stack[n_stack]
-        s, t = (key >> 8) - h, (key & 255) - h
         count += 1
         for q in range(4):
-            u = s + (q == 0) - (q == 1)
-            v = t + (q == 2) - (q == 3)
-            nkey = ((u + h) << 8) | (v + h)
-            if abs(u) > h or abs(v) > h or seen[nkey] != 0:
+            nkey = key + (256 if q == 0 else (-256 if q == 1 else (1 if q == 2 else -1)))
+            if seen[nkey] >= stamp:
                 continue
-            seen[nkey] = 1
-            trail[n_trail] = nkey
-            n_trail += 1
+            seen[nkey] = stamp
+            u, v = (nkey >> 8) - h - 1, (nkey & 255) - h - 1
             i = int(math.floor(x[0] + u * e1[0] + v * e2[0] + 0.5))
             j = int(math.floor(x[1] + u * e1[1] + v * e2[1] + 0.5))
             k = int(math.floor(x[2] + u * e1[2] + v * e2[2] + 0.5))
@@ -92,9 +92,19 @@ def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
             if lab == la or lab == lb:
                 stack[n_stack] = nkey
                 n_stack += 1
-    for q in range(n_trail):
-        seen[trail[q]] = 0
     return count
+
+
+@jit
+def _flood_scratch(half):
+    """Scratch of :func:`_plane_area` for the grid ``|s|, |t| <= half``: (seen, stack), seen's border set."""
+    w = 2 * half + 1
+    seen = np.zeros((w + 2) * 256, np.int32)
+    big = np.iinfo(np.int32).max
+    for a in range(w + 2):
+        seen[a << 8] = seen[(a << 8) | (w + 1)] = big
+        seen[a] = seen[((w + 1) << 8) | a] = big
+    return seen, np.zeros(w * w, np.int32)
 
 
 @jit
@@ -193,15 +203,15 @@ def _law_areas(dt2, labels, geom, offsets, seed, caps, box):
     The plane flood of :func:`_plane_area` from the sample's ``seed``, restricted to the throat's
     two pores, at most ``caps[i]`` voxel faces for sample ``i`` (shape (offsets[-1],) int64); 0
     where ``seed[i, 2]`` is 0. Blocks of :data:`BLOCK` throats run on numba's threads, each with
-    its own scratch (left all zero by every flood), so the result does not depend on the number of
-    threads. Returns ndarray of float64, shape (offsets[-1],), voxel faces.
+    its own scratch (:func:`_flood_scratch`; its floods take stamps 1, 2, ...), so the result does
+    not depend on the number of threads. Returns ndarray of float64, shape (offsets[-1],), voxel faces.
     """
     centre, point, conns = geom
     a_out = np.zeros(offsets[-1], np.float64)
     n_t = conns.shape[0]
-    w = 2 * 64 + 1
     for blk in prange((n_t + BLOCK - 1) // BLOCK):
-        work = (np.zeros(w * 256, np.uint8), np.zeros(w * w, np.int32), np.zeros(w * w, np.int32))
+        work = _flood_scratch(64)
+        stamp = 0
         for q in range(2 * blk * BLOCK, min(2 * n_t, 2 * (blk + 1) * BLOCK)):
             m = offsets[q + 1] - offsets[q]
             pair = (conns[q // 2, 0], conns[q // 2, 1])
@@ -210,8 +220,9 @@ def _law_areas(dt2, labels, geom, offsets, seed, caps, box):
                 if seed[i, 2] == 0:
                     continue
                 x, _, plane = _sample_point(centre[conns[q // 2, q % 2]], point[q // 2], j, m)
+                stamp += 1
                 a_out[i] = _plane_area(dt2, labels, box, x, plane, (seed[i, 0], seed[i, 1], pair[0], pair[1]),
-                                       caps[i], work)
+                                       (caps[i], stamp), work)
     return a_out
 
 
