@@ -207,3 +207,33 @@ def test_relabel_equals_fancy_indexing(seed, shape, n):
 def test_isqrt_is_the_integer_square_root():
     for x in list(range(2000)) + [2**31 - 1, 10**12, 10**12 - 1]:
         assert kern._isqrt(x) == math.isqrt(x)
+
+
+def test_threaded_kernels_do_not_depend_on_the_number_of_threads():
+    """The maximal-ball test (slabs on numba's threads) and the throat radii (points on them): one thread
+    and all of them give the same arrays to the bit on a blob image."""
+    import numba
+
+    from porefsi.network._mb_sections import _stair_section_peaks
+
+    rng = np.random.default_rng(11)
+    field = ndimage.gaussian_filter(rng.standard_normal((30, 26, 28)), 1.8)
+    img = (field > np.quantile(field, 0.7)).astype(np.uint8)
+    d = _edt(img)
+    pts = np.argwhere(d > 0)[::7].astype(np.float64)
+    pts[::2, 1] += 0.5  # face points (one half-integer coordinate) and voxel points
+    walls = np.array([1, 0, 1], np.int64)
+
+    def run():
+        return _balls(d, 2, 2)[0], _stair_section_peaks(d, pts, 0.5, 4, walls)
+
+    n = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = run()
+    finally:
+        numba.set_num_threads(n)
+    many = run()
+    assert one[0].size > 50 and n >= 1
+    for a, b in zip(one, many, strict=True):
+        np.testing.assert_array_equal(a, b)

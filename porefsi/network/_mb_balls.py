@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from porefsi._numba import jit
+from porefsi._numba import jit, prange
 
 
 # --------------------------------------------------------------------------------------------
@@ -47,19 +47,47 @@ def _maximal_balls(dt2, min_dt2, offsets, off_class, reach2, scratch, like):
     n_candidates : int
     """
     nx, ny, nz = dt2.shape
-    ncand = 0
-    n_off = offsets.shape[0]
-    top = 0
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if dt2[i, j, k] > top:
-                    top = dt2[i, j, k]
+    slab_top, slab_cand = _mark_maximal(dt2, min_dt2, offsets, off_class, reach2, scratch)
+    top, ncand = slab_top.max(), slab_cand.sum()
     count = np.zeros(top + 2, np.int64)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
+                if scratch[i, j, k] == -2:
+                    count[top - dt2[i, j, k]] += 1
+    start = np.zeros(top + 2, np.int64)
+    for t in range(1, top + 2):
+        start[t] = start[t - 1] + count[t - 1]
+    order = np.empty(start[top + 1], like.dtype)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if scratch[i, j, k] == -2:
+                    scratch[i, j, k] = -1
+                    key = top - dt2[i, j, k]
+                    order[start[key]] = (i * ny + j) * nz + k
+                    start[key] += 1
+    return order, ncand
+
+
+@jit(parallel=True)
+def _mark_maximal(dt2, min_dt2, offsets, off_class, reach2, scratch):
+    """:func:`_maximal_balls`' test: ``scratch[p] = -2`` at every maximal-ball centre p.
+
+    Slabs along the first axis run on numba's threads; each voxel is tested alone (reads ``dt2``,
+    writes only its own ``scratch`` entry), so the result does not depend on their number.
+    Returns the largest ``dt2`` and the number of candidates of each slab, (nx,) int64 each.
+    """
+    nx, ny, nz = dt2.shape
+    n_off = offsets.shape[0]
+    slab_top = np.zeros(nx, np.int64)
+    slab_cand = np.zeros(nx, np.int64)
+    for i in prange(nx):
+        top, ncand = 0, 0
+        for j in range(ny):
+            for k in range(nz):
                 dp = dt2[i, j, k]
+                top = max(top, np.int64(dp))
                 if dp < min_dt2:
                     continue
                 ncand += 1
@@ -76,20 +104,8 @@ def _maximal_balls(dt2, min_dt2, offsets, off_class, reach2, scratch, like):
                         break
                 if maximal:
                     scratch[i, j, k] = -2
-                    count[top - dp] += 1
-    start = np.zeros(top + 2, np.int64)
-    for t in range(1, top + 2):
-        start[t] = start[t - 1] + count[t - 1]
-    order = np.empty(start[top + 1], like.dtype)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if scratch[i, j, k] == -2:
-                    scratch[i, j, k] = -1
-                    key = top - dt2[i, j, k]
-                    order[start[key]] = (i * ny + j) * nz + k
-                    start[key] += 1
-    return order, ncand
+        slab_top[i], slab_cand[i] = top, ncand
+    return slab_top, slab_cand
 
 
 @jit

@@ -28,18 +28,32 @@ def _relabel(labels, table):
 # Voxel labels: seeded priority flood on the distance map (marker watershed)
 # --------------------------------------------------------------------------------------------
 @jit
-def _neighbour(n, t, dims):
-    """Flat index of the face neighbour ``t`` (-x, +x, -y, +y, -z, +z) of voxel ``n``, -1 outside."""
+def _coords(n, dims):
+    """Voxel (i, j, k) of flat index ``n`` (two integer divisions)."""
+    q = n // dims[2]
+    i = q // dims[1]
+    return i, q - i * dims[1], n - q * dims[2]
+
+
+@jit
+def _neighbour(n, t, ijk, dims):
+    """Flat index of the face neighbour ``t`` (-x, +x, -y, +y, -z, +z) of voxel ``n`` at ``ijk``, -1 outside.
+
+    ``ijk`` = :func:`_coords` of ``n``, decoded once per voxel (a division costs more than the rest).
+    """
     nx, ny, nz = dims
-    ax, up = t // 2, t % 2
-    if ax == 0:
-        i = n // (ny * nz)
-        return -1 if (i == nx - 1 if up else i == 0) else n + (ny * nz if up else -ny * nz)
-    if ax == 1:
-        j = (n // nz) % ny
-        return -1 if (j == ny - 1 if up else j == 0) else n + (nz if up else -nz)
-    k = n % nz
-    return -1 if (k == nz - 1 if up else k == 0) else n + (1 if up else -1)
+    i, j, k = ijk
+    if t == 0:
+        return -1 if i == 0 else n - ny * nz
+    if t == 1:
+        return -1 if i == nx - 1 else n + ny * nz
+    if t == 2:
+        return -1 if j == 0 else n - nz
+    if t == 3:
+        return -1 if j == ny - 1 else n + nz
+    if t == 4:
+        return -1 if k == 0 else n - 1
+    return -1 if k == nz - 1 else n + 1
 
 
 @jit
@@ -76,8 +90,9 @@ def _flood_level(df, lf, dims, segment, queue, level):
         n = np.int64(segment[s])
         if lf[n] != -1:
             continue
+        ijk = _coords(n, dims)
         for t in range(6):
-            m = _neighbour(n, t, dims)
+            m = _neighbour(n, t, ijk, dims)
             if m >= 0 and lf[m] >= 0:
                 lf[n] = -2 - lf[m]  # pending: invisible to the rest of this scan
                 queue[tail] = n
@@ -90,8 +105,9 @@ def _flood_level(df, lf, dims, segment, queue, level):
     while head < tail:
         n = np.int64(queue[head])
         head += 1
+        ijk = _coords(n, dims)
         for t in range(6):
-            m = _neighbour(n, t, dims)
+            m = _neighbour(n, t, ijk, dims)
             if m >= 0 and lf[m] == -1 and df[m] >= level:
                 lf[m] = lf[n]
                 queue[tail] = m

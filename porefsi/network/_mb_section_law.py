@@ -16,7 +16,7 @@ import numpy as np
 
 from porefsi._numba import jit, prange
 from porefsi.network._mb_edt import _d2
-from porefsi.network._mb_sections import SAMPLE_STEP, _nearest, _perp_basis, _section_radius
+from porefsi.network._mb_sections import SAMPLE_STEP, _nearest, _perp_basis, _ridge_radius
 from porefsi.network.geometry import duct_conductance_factor
 from porefsi.network.network import CIRCLE_SHAPE_FACTOR
 
@@ -44,42 +44,44 @@ def _in_channel(dt2, labels, box, i, j, k, la, lb):
 
 
 @jit
-def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
+def _plane_area(dt2, labels, box, x, plane, seed, limits, work):
     """Area (voxel faces) of the channel's section through x in the plane spanned by ``plane``.
 
     The plane is sampled on the unit grid ``x + s e1 + t e2`` (integers s, t; each point stands for
     one voxel face of the plane), each point read at its nearest voxel. ``seed`` = (s0, t0, la, lb):
     from the grid point (s0, t0), the 4-connected set of points whose voxel is pore (walled map,
     ``box``) and belongs to pore ``la`` or ``lb`` is counted, up to ``cap`` points (the count
-    then returns ``cap``). ``work``: scratch arrays (seen (W, W) uint8; stack and trail (W * W,)
-    int32, flat grid indices), ``W`` odd, the grid centred on s = t = 0 (points beyond it are not
-    visited); ``seen`` is all zero on entry and on return. The inner loop reads the voxel inline (the
-    :func:`_grid_voxel` and :func:`_in_channel` tests, no calls per point).
+    then returns ``cap``); ``limits`` = (cap, stamp). ``work`` = (seen, stack): ``seen``
+    (:func:`_flood_scratch`, int32 (W + 2) * 256, grid point (s, t) at ``(s + h + 1) * 256 + t + h
+    + 1``, ``h = W // 2``, W odd and at most 253) holds the stamp of the flood that last visited
+    each point, and its border (one point around the grid) holds the largest int32, so a point is
+    new to this flood when its entry is below ``stamp`` (every flood sharing the scratch takes a
+    larger stamp: no reset, no bounds test per point); ``stack`` int32 (W * W,). Points beyond the
+    grid are not visited. The inner loop reads the voxel inline (no calls per point) and moves
+    between keys by adding 1 or 256 (no divisions).
     """
-    seen, stack, trail = work
-    w = seen.shape[0]
-    h = w // 2
+    seen, stack = work
+    cap, stamp = limits
+    h = ((seen.size >> 8) - 2) >> 1
     nx, ny, nz = dt2.shape
     e1, e2 = plane
     s0, t0, la, lb = seed
     i, j, k = _grid_voxel(x, e1, e2, s0, t0, dt2.shape)
     if abs(s0) > h or abs(t0) > h or not _in_channel(dt2, labels, box, i, j, k, la, lb):
         return 0
-    stack[0] = trail[0] = (s0 + h) * w + t0 + h
-    seen[s0 + h, t0 + h] = 1
-    n_stack, n_trail, count = 1, 1, 0
+    stack[0] = ((s0 + h + 1) << 8) | (t0 + h + 1)
+    seen[stack[0]] = stamp
+    n_stack, count = 1, 0
     while n_stack > 0 and count < cap:
         n_stack -= 1
-        s, t = stack[n_stack] // w - h, stack[n_stack] % w - h
+        key = stack[n_stack]
         count += 1
         for q in range(4):
-            u = s + (q == 0) - (q == 1)
-            v = t + (q == 2) - (q == 3)
-            if abs(u) > h or abs(v) > h or seen[u + h, v + h] != 0:
+            nkey = key + (256 if q == 0 else (-256 if q == 1 else (1 if q == 2 else -1)))
+            if seen[nkey] >= stamp:
                 continue
-            seen[u + h, v + h] = 1
-            trail[n_trail] = (u + h) * w + v + h
-            n_trail += 1
+            seen[nkey] = stamp
+            u, v = (nkey >> 8) - h - 1, (nkey & 255) - h - 1
             i = int(math.floor(x[0] + u * e1[0] + v * e2[0] + 0.5))
             j = int(math.floor(x[1] + u * e1[1] + v * e2[1] + 0.5))
             k = int(math.floor(x[2] + u * e1[2] + v * e2[2] + 0.5))
@@ -88,31 +90,59 @@ def _plane_area(dt2, labels, box, x, plane, seed, cap, work):
             # the walled map is 0 only where dt2 is (its box terms are >= 1)
             lab = labels[i, j, k]
             if lab == la or lab == lb:
-                stack[n_stack] = (u + h) * w + v + h
+                stack[n_stack] = nkey
                 n_stack += 1
-    for q in range(n_trail):
-        seen[trail[q] // w, trail[q] % w] = 0
     return count
 
 
 @jit
-def _widest(dt2, x, plane, box, rho):
-    """Grid offset (s, t) of the widest voxel (walled map) within the disc ``s^2 + t^2 <= rho^2``."""
+def _flood_scratch(half):
+    """Scratch of :func:`_plane_area` for the grid ``|s|, |t| <= half``: (seen, stack), seen's border set."""
+    w = 2 * half + 1
+    seen = np.zeros((w + 2) * 256, np.int32)
+    big = np.iinfo(np.int32).max
+    for a in range(w + 2):
+        seen[a << 8] = seen[(a << 8) | (w + 1)] = big
+        seen[a] = seen[((w + 1) << 8) | a] = big
+    return seen, np.zeros(w * w, np.int32)
+
+
+@jit
+def _radius_seed(dt2, rad_tab, x, u, plane, box):
+    """The sample's radius, its flood's seed offset (s0, t0) and whether it is in the channel, in one disc scan.
+
+    One pass over the disc ``s^2 + t^2 <= rho^2`` of the ball inscribed at x (``rho`` at x's
+    nearest voxel, walled map ``box``) keeps two maxima of the walled map: that of
+    :func:`porefsi.network._mb_sections._section_radius` (points read at their nearest voxel
+    clipped to the image, the voxel nearest to x winning ties, then the first met), whose ridge
+    estimate (:func:`porefsi.network._mb_sections._ridge_radius`) is the radius, and the flood's
+    seed (points off the image skipped, the first met winning ties). Returns (r, s0, t0, 1), or
+    (0, 0, 0, 0) when x's voxel is solid.
+    """
     e1, e2 = plane
-    dims = dt2.shape
-    best, bs, bt = np.int64(-1), 0, 0
+    nx, ny, nz = dt2.shape
+    a, b, c = _nearest(x[0], nx), _nearest(x[1], ny), _nearest(x[2], nz)
+    best = _d2(dt2, a, b, c, box)
+    rho = rad_tab[best]
+    if rho == 0.0:
+        return 0.0, 0, 0, 0
+    ba, bb, bc = a, b, c
+    wide, bs, bt = np.int64(-1), 0, 0
     h = int(rho)
     for s in range(-h, h + 1):
         for t in range(-h, h + 1):
             if s * s + t * t > rho * rho:
                 continue
-            i, j, k = _grid_voxel(x, e1, e2, s, t, dims)
-            if i < 0:
-                continue
+            fi = int(math.floor(x[0] + s * e1[0] + t * e2[0] + 0.5))
+            fj = int(math.floor(x[1] + s * e1[1] + t * e2[1] + 0.5))
+            fk = int(math.floor(x[2] + s * e1[2] + t * e2[2] + 0.5))
+            i, j, k = min(max(fi, 0), nx - 1), min(max(fj, 0), ny - 1), min(max(fk, 0), nz - 1)
             v = _d2(dt2, i, j, k, box)
             if v > best:
-                best, bs, bt = v, s, t
-    return bs, bt
+                best, ba, bb, bc = v, i, j, k
+            if v > wide and i == fi and j == fj and k == fk:
+                wide, bs, bt = v, s, t
+    return _ridge_radius(dt2, rad_tab, ba, bb, bc, u, box), bs, bt, 1
 
 
 @jit
@@ -134,9 +164,10 @@ def _law_radii(dt2, rad_tab, geom, offsets, box):
     :func:`porefsi.network._mb_sections._lengths`, zero parts for a side not integrated). Each
     sample reads the radius of :func:`porefsi.network._mb_sections._section_radius` (the ridge
     estimate of the widest channel voxel within the ball inscribed at the sample, in the plane
-    normal to the side) and the grid offset of that widest voxel (:func:`_widest`), where
-    :func:`_law_areas` starts the sample's plane flood. Sides run on numba's threads (``prange``);
-    each sample is computed alone, so the result does not depend on the number of threads.
+    normal to the side) and the grid offset of the widest voxel on the image in that disc, where
+    :func:`_law_areas` starts the sample's plane flood, both in one scan (:func:`_radius_seed`).
+    Sides run on numba's threads (``prange``); each sample is computed alone, so the result does
+    not depend on the number of threads.
 
     Parameters
     ----------
@@ -156,17 +187,12 @@ def _law_radii(dt2, rad_tab, geom, offsets, box):
     n_s = offsets[-1]
     r_out = np.zeros(n_s, np.float64)
     seed = np.zeros((n_s, 3), np.int32)
-    dims = dt2.shape
     for q in prange(offsets.size - 1):
         m = offsets[q + 1] - offsets[q]
         for j in range(m):
             x, u, plane = _sample_point(centre[conns[q // 2, q % 2]], point[q // 2], j, m)
-            r_out[offsets[q] + j] = _section_radius(dt2, rad_tab, x, u, plane, box, False)
-            a, b, c = _nearest(x[0], dims[0]), _nearest(x[1], dims[1]), _nearest(x[2], dims[2])
-            rho = rad_tab[_d2(dt2, a, b, c, box)]
-            if rho > 0.0:
-                seed[offsets[q] + j, 0], seed[offsets[q] + j, 1] = _widest(dt2, x, plane, box, rho)
-                seed[offsets[q] + j, 2] = 1
+            i = offsets[q] + j
+            r_out[i], seed[i, 0], seed[i, 1], seed[i, 2] = _radius_seed(dt2, rad_tab, x, u, plane, box)
     return r_out, seed
 
 
@@ -177,15 +203,15 @@ def _law_areas(dt2, labels, geom, offsets, seed, caps, box):
     The plane flood of :func:`_plane_area` from the sample's ``seed``, restricted to the throat's
     two pores, at most ``caps[i]`` voxel faces for sample ``i`` (shape (offsets[-1],) int64); 0
     where ``seed[i, 2]`` is 0. Blocks of :data:`BLOCK` throats run on numba's threads, each with
-    its own scratch (left all zero by every flood), so the result does not depend on the number of
-    threads. Returns ndarray of float64, shape (offsets[-1],), voxel faces.
+    its own scratch (:func:`_flood_scratch`; its floods take stamps 1, 2, ...), so the result does
+    not depend on the number of threads. Returns ndarray of float64, shape (offsets[-1],), voxel faces.
     """
     centre, point, conns = geom
     a_out = np.zeros(offsets[-1], np.float64)
     n_t = conns.shape[0]
-    w = 2 * 64 + 1
     for blk in prange((n_t + BLOCK - 1) // BLOCK):
-        work = (np.zeros((w, w), np.uint8), np.zeros(w * w, np.int32), np.zeros(w * w, np.int32))
+        work = _flood_scratch(64)
+        stamp = 0
         for q in range(2 * blk * BLOCK, min(2 * n_t, 2 * (blk + 1) * BLOCK)):
             m = offsets[q + 1] - offsets[q]
             pair = (conns[q // 2, 0], conns[q // 2, 1])
@@ -194,8 +220,9 @@ def _law_areas(dt2, labels, geom, offsets, seed, caps, box):
                 if seed[i, 2] == 0:
                     continue
                 x, _, plane = _sample_point(centre[conns[q // 2, q % 2]], point[q // 2], j, m)
+                stamp += 1
                 a_out[i] = _plane_area(dt2, labels, box, x, plane, (seed[i, 0], seed[i, 1], pair[0], pair[1]),
-                                       caps[i], work)
+                                       (caps[i], stamp), work)
     return a_out
 
 

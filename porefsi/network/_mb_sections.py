@@ -12,7 +12,7 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from porefsi._numba import jit
+from porefsi._numba import jit, prange
 from porefsi.network._mb_edt import _d2
 from porefsi.network._mb_regions import _interfaces
 
@@ -383,7 +383,7 @@ def _box_gap(dims, x, y, z, walls, held):
     return g
 
 
-@jit
+@jit(parallel=True)
 def _stair_section_peaks(dt2, points, half, n, walls):
     """Largest distance to the voxel staircase over a grid of points around each point, voxels.
 
@@ -393,10 +393,11 @@ def _stair_section_peaks(dt2, points, half, n, walls):
     positions (so a channel whose axis falls between voxel centres reads the same at every grid).
     The box faces of every axis with ``walls[axis]`` non-zero (int64 (3,)) other than the held one
     are walls too (:func:`_box_gap`): a section the box cuts reads the radius of its part inside.
+    Points run on numba's threads (``prange``), each alone: the result does not depend on their number.
     """
     m = points.shape[0]
     out = np.zeros(m, np.float64)
-    for q in range(m):
+    for q in prange(m):
         x0, y0, z0 = points[q, 0], points[q, 1], points[q, 2]
         held = -1
         for t in range(3):
