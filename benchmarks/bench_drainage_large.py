@@ -2,7 +2,7 @@
 
 Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/bench_drainage_large.py --net lat100k [--ca paper]
 [--opt tie_tolerance=1 local_solves=0] [--max-cpu 900] [--image ../shared/data/berea_icl_400.npz]
-[--cache DIR]``.
+[--cache DIR] [--checkpoint FILE [--resume]]``.
 
 Networks as in ``bench_drainage_scheme.py`` (``lat10k`` ... ``lat100k``, ``berea``, ``berea2`` =
 the 400³ Berea network mirror-tiled 2x2x2, extracted once and cached). Drains with the adaptive
@@ -11,13 +11,21 @@ progress line every 30 s (fills, certified fills, solves, Sw, CPU seconds), then
 line: CPU seconds, counters, breakthrough time and Sw, and, as the only truth that runs at this
 size, the quasi-static limit on the same network (invasion percolation with trapping): Spearman
 rank correlation of the invasion order, pores invaded by one only, the breakthrough volume.
-Where the exact scheme can run, ``bench_drainage_scheme.py`` compares against it. The load
+With ``--checkpoint FILE`` a run that reaches ``--max-cpu`` / ``--max-wall`` is saved there (the
+drainage checkpoint, bit for bit the uninterrupted run) and ``--resume`` continues it in a later
+process (a later turn of the heavy-job lock); the CPU and wall seconds of every segment, the
+checkpoint reads and writes and the resumed base factorisations included, are summed in
+``FILE.cpu.json`` and reported as the run's. Where the exact scheme can run,
+``bench_drainage_scheme.py`` compares against it. The load
 average is printed (a shared 2-core machine: CPU seconds are the comparable number).
 """
 
 import argparse
 import json
+import os
 import pathlib
+import resource
+import signal
 import sys
 import time
 
@@ -55,6 +63,9 @@ def main(argv=None):
     p.add_argument("--cache", default=str(HERE / "_drainage_scheme"))
     p.add_argument("--json", help="append the result record to this file (JSON lines)")
     p.add_argument("--save", help="write the run's invasion times and history to this .npz")
+    p.add_argument("--checkpoint", help="save the run here when it stops at a limit (and every 300 s of wall)")
+    p.add_argument("--resume", action="store_true", help="continue the run saved at --checkpoint")
+    p.add_argument("--report-every", type=float, default=30.0, help="wall seconds between progress lines")
     args = p.parse_args(argv)
     cache = pathlib.Path(args.cache)
     cache.mkdir(parents=True, exist_ok=True)
@@ -67,9 +78,12 @@ def main(argv=None):
     from porefsi.network.lattice import lattice_network
 
     warm = lattice_network((8, 6, 6), 4e-5, np.random.default_rng(0))  # numba caches outside the timing
-    for solver in ("split", "lowrank"):
+    for solver in ("split", "lowrank", "selinv"):
         simulate_drainage(warm, fl, options, stop_at_breakthrough=True, solver=solver)
-    c0, w0 = time.process_time(), time.perf_counter()
+    side = pathlib.Path(str(args.checkpoint) + ".cpu.json") if args.checkpoint else None
+    prev = json.loads(side.read_text()) if args.resume and side.is_file() else dict(cpu_s=0.0, wall_s=0.0, segments=0)
+    c0, w0 = time.process_time() - prev["cpu_s"], time.perf_counter() - prev["wall_s"]
+    w_seg = time.perf_counter()
 
     class TooLongError(Exception):
         pass
@@ -79,7 +93,10 @@ def main(argv=None):
         cpu = time.process_time() - c0
         print(f"  t = {sim.t:.4g} s fills {c['n_fills']} certified {c['n_certified_fills']} solves {c['n_solves']} "
               f"local {c['n_local_solves']} setups {c['n_solver_setups']} cpu {cpu:.0f} s load {_load()}", flush=True)
-        if cpu > args.max_cpu or time.perf_counter() - w0 > args.max_wall:
+        if cpu > args.max_cpu or time.perf_counter() - w_seg > args.max_wall:
+            if args.checkpoint:  # the run's own deferred interrupt: saved after this event, then stopped
+                os.kill(os.getpid(), signal.SIGINT)
+                return
             raise TooLongError(f"stopped after {cpu:.0f} CPU s, {time.perf_counter() - w0:.0f} wall s")
 
     print(f"{args.net}: {net.n_pores} pores, Ca = {ca:.2e}, options {opts}, load {_load()}", flush=True)
@@ -89,12 +106,19 @@ def main(argv=None):
 
         prof = cProfile.Profile()
         prof.enable()
+    ckpt = dict(checkpoint=args.checkpoint, checkpoint_every=300.0, resume=args.resume) if args.checkpoint else {}
     try:
         res = simulate_drainage(net, fl, options, stop_at_breakthrough=True,
-                                run=RunControl(report=report, report_every=30.0))
+                                run=RunControl(report=report, report_every=args.report_every, **ckpt))
     except TooLongError as exc:
         print(f"{args.net}: NOT FINISHED ({exc})", flush=True)
         return 1
+    except KeyboardInterrupt as exc:
+        seg = dict(cpu_s=time.process_time() - c0, wall_s=time.perf_counter() - w0, segments=prev["segments"] + 1)
+        side.write_text(json.dumps(seg))
+        print(f"{args.net}: PAUSED after {seg['cpu_s']:.0f} CPU s, {seg['wall_s']:.0f} wall s in {seg['segments']} "
+              f"segment(s) ({exc}); continue with --resume", flush=True)
+        return 2
     finally:
         if prof is not None:
             prof.disable()
@@ -105,6 +129,7 @@ def main(argv=None):
     a, b = np.isfinite(t), ip.pore_sequence >= 0
     both = a & b
     rec = dict(net=args.net, n_pores=net.n_pores, ca=ca, options=opts, cpu_s=cpu, wall_s=wall, counters=res.counters,
+               segments=prev["segments"] + 1, peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                breakthrough_time=res.breakthrough_time, breakthrough_sw=res.breakthrough_sw,
                spearman_vs_ip=_spearman(t[both], ip.pore_sequence[both]), only_dpn=int((a & ~b).sum()),
                only_ip=int((b & ~a).sum()), ip_breakthrough_fills=int(ip.breakthrough_step + 1),

@@ -176,3 +176,21 @@ def test_edge_states_and_assembly_match_twin_to_the_bit(rng, bc):
         for x, y in zip(got, want, strict=True):
             np.testing.assert_array_equal(x, y)
             assert np.array_equal(np.signbit(x), np.signbit(y))  # -0.0 where the twin has it
+
+
+def test_open_path_matches_the_edge_states_twin(rng):
+    """``_open_path`` is ``men.any() or (fa & ~inner).any()`` of the NumPy edge-state twin."""
+    g = _graph(rng)
+    n, E = g.n, g.n_edges
+    seen = set()
+    for i in range(60):
+        full = rng.random(n) < (0.02 if i % 3 == 0 else 0.4)
+        trapped = ~full & (rng.random(n) < 0.1)
+        inv = rng.random(E) < (0.05 if i % 2 else 0.5)
+        closed = rng.random(E) < (0.9 if i % 4 == 0 else 0.2)
+        _, men, fa = ref.edge_states(g, full, trapped, inv, closed)
+        want = bool(men.any() or (fa & ~g.inner).any())
+        got = kern._open_path((g.a, g.b, n), g.inner, (full, trapped, inv, closed))
+        assert got == want
+        seen.add(want)
+    assert seen == {True, False}  # both answers exercised

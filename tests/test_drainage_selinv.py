@@ -128,3 +128,37 @@ def test_selinv_adaptive_run_makes_the_exact_schemes_events(ca):
     np.testing.assert_allclose(tb[inv], ta[inv], rtol=1e-7)
     assert res.breakthrough_time == pytest.approx(ref.breakthrough_time, rel=1e-7)
     np.testing.assert_allclose(res.history["sw"][-1], ref.history["sw"][-1], rtol=1e-9)
+
+
+def test_bookkeeping_kernels_match_numpy_twins_to_the_bit():
+    """``_take_nonzeros``, ``_changed_rows`` and ``_capacitance_matrix`` against the NumPy/SciPy expressions they replace."""
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        y = np.where(rng.random(300) < 0.2, rng.standard_normal(300), 0.0)
+        start, end = int(rng.integers(0, 100)), int(rng.integers(150, 301))
+        want_idx = start + np.flatnonzero(y[start:end])
+        want_val = y[want_idx].copy()
+        left = y.copy()
+        left[want_idx] = 0.0
+        idx, val = si._take_nonzeros(y, start, end)
+        np.testing.assert_array_equal(idx, want_idx)
+        np.testing.assert_array_equal(val, want_val)
+        np.testing.assert_array_equal(y, left)  # taken out of the work vector
+    A = _grid_laplacian(5, 7)
+    rows = la.rows(A)
+    for _ in range(10):
+        data = A.data.copy()
+        hit = rng.random(data.size) < 0.05
+        data[hit] += rng.standard_normal(int(hit.sum()))
+        nz, S = si._changed_rows(data, A.data, rows)
+        np.testing.assert_array_equal(nz, np.flatnonzero(data - A.data))
+        np.testing.assert_array_equal(S, np.unique(rows[np.flatnonzero(data - A.data)]))
+    for m in (1, 7, 40):
+        W = rng.standard_normal((60, 60))
+        cS = rng.choice(60, m, replace=False)
+        dense = np.where(rng.random((m, m)) < 0.15, rng.standard_normal((m, m)), 0.0)
+        D = sp.csr_array(dense + dense.T)
+        want = np.eye(m) + (D.T @ W[np.ix_(cS, cS)].T).T
+        got = si._capacitance_matrix(W, cS, D.indptr, D.indices, D.data)
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_allclose(got, np.eye(m) + W[np.ix_(cS, cS)] @ D.toarray(), rtol=1e-12, atol=1e-12)

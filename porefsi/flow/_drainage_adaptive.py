@@ -228,7 +228,8 @@ class AdaptiveEngine(Engine):
             self.n_local += 1
         P[:self.g.n][self.trapped] = old[:self.g.n][self.trapped]
         if glob and not force_global:
-            self.ref_data, self.ref_rhs, self.ref_P = A.data.copy(), rhs.copy(), P.copy()
+            if self.max_local > 0:  # the far field of later local solves (none allowed: no copies)
+                self.ref_data, self.ref_rhs, self.ref_P = A.data.copy(), rhs.copy(), P.copy()
             self.has_ref = True
             self.local_left = self.max_local
             self.n_global += 1

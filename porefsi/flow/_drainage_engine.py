@@ -83,8 +83,8 @@ class Engine:
 
     def has_open_path(self) -> bool:
         """Whether injected fluid can move: an active meniscus or a non-wetting conduit to the outlet."""
-        _, men, fa = self.conductances()
-        return bool(men.any() or (fa & ~self.g.inner).any())
+        g = self.g
+        return bool(kern._open_path((g.a, g.b, g.n), g.inner, (self.full, self.trapped, self.inv, self.closed)))
 
     # -- pressure solve --------------------------------------------------------------------
     def _wetting_diagonal(self):

@@ -368,6 +368,30 @@ def _edge_states(ends, inner, cond_n, cond_w, state):
 
 
 @jit
+def _open_path(ends, inner, state):
+    """Whether ``_edge_states`` would report an active meniscus or a non-wetting outlet conduit.
+
+    Same arguments and the same edge kinds as :func:`_edge_states` (without its arrays): an
+    inner edge between a non-wetting and a wetting end that is invaded and not closed, neither
+    end trapped; or an outlet conduit with a non-wetting end (trapped or not, as there).
+    """
+    a, b, n = ends
+    full, trapped, inv, closed = state
+    for e in range(a.shape[0]):
+        ae, be = a[e], b[e]
+        fae = ae == n or (ae < n and full[ae])
+        if not inner[e]:
+            if fae:
+                return True
+            continue
+        fbe = be == n or (be < n and full[be])
+        if fae != fbe and inv[e] and not closed[e]:
+            if not ((ae < n and trapped[ae]) or (be < n and trapped[be])):
+                return True
+    return False
+
+
+@jit
 def _assemble(ends, edge, cond, pcb, pos, diag_ref, bc):
     """Values of the pressure matrix (fixed CSR pattern) and the right-hand side of a configuration.
 
