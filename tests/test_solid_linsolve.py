@@ -205,7 +205,7 @@ def test_factor_work_prediction_follows_superlu(rock_model):
     the same graph (a denser node graph: more fill) is predicted dearer."""
     import scipy.sparse.linalg as spla
 
-    from porefsi.solid.footprint import lu_factor_flops
+    from porefsi.solid.footprint import lu_factor_flops, lu_solve_flops
 
     m = rock_model
     K = sp.csc_matrix(m.tangent(np.zeros(m.n_dofs), 1.0))
@@ -213,6 +213,8 @@ def test_factor_work_prediction_follows_superlu(rock_model):
     true = float(np.sum(np.diff(sp.csc_matrix(lu.L).indptr).astype(float) ** 2))
     pred = lu_factor_flops(K, m.free)
     assert 0.6 * true <= pred <= 1.6 * true
+    # a substitution touches every nonzero of L and U once
+    assert 0.75 * (lu.L.nnz + lu.U.nnz) <= lu_solve_flops(K, m.free) <= 1.6 * (lu.L.nnz + lu.U.nnz)  # 1.20 here
     K2 = sp.csr_matrix(K @ K)  # the squared operator's graph: every node joined to its second neighbours
     assert lu_factor_flops(K2, m.free) > 2 * pred
 
