@@ -36,6 +36,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -65,10 +66,43 @@ RUNS = {
     # factorisation; docs/solid.md section 5, 2026-12-02 evening)
     "graded_3_12_auto": {**RECIPE, "linear_solver": "auto"},
     "graded_3_12_lig1_auto": {**RECIPE, "ligaments": 1.0, "linear_solver": "auto"},
+    # "auto" as it was before the frozen-tangent hint (2026-12-02 night): no hint, no warm start
+    # ("_before" is not a solid option: the bench switches linsolve.USE_HINTS and the stepper's
+    # ITERATIVE for the run, in this process)
+    "uniform6_auto_before": {"coarsen": 6, "linear_solver": "auto", "_before": True},
+    "graded_3_12_auto_before": {**RECIPE, "linear_solver": "auto", "_before": True},
+    "graded_3_12_lig1_auto_before": {**RECIPE, "ligaments": 1.0, "linear_solver": "auto", "_before": True},
 }
 #: (run, baseline) pairs whose CPU ratio the summary reports, and the run whose error is the target's.
-TARGET = {"recipe": "graded_3_12_lig1_auto", "recipe_before": "graded_3_12_lig1", "accuracy_of": "uniform4",
+TARGET = {"recipe": "graded_3_12_lig1_auto", "recipe_before": "graded_3_12_lig1_auto_before", "accuracy_of": "uniform4",
           "cost_of": "uniform6", "cost_of_same_solver": "uniform6_auto"}
+
+
+@contextlib.contextmanager
+def _rule(spec: dict):
+    """Run with the solid overrides ``spec``; its ``_before`` key: "auto" without the hint and warm start."""
+    from porefsi.coupling import solid_step
+    from porefsi.solid import linsolve
+
+    saved = linsolve.USE_HINTS, solid_step.ITERATIVE, linsolve.AdaptiveSolverFactory._hinted_choice
+    if spec.get("_before"):
+        linsolve.USE_HINTS, solid_step.ITERATIVE = False, ("amg", "jacobi")
+    CHOICES.clear()
+
+    def noted(self, A, solves):  # the hinted choices of the run, for its row
+        out = saved[2](self, A, solves)
+        CHOICES.append({k: (round(v, 3) if isinstance(v, float) else v) for k, v in self.predicted.items()})
+        return out
+
+    linsolve.AdaptiveSolverFactory._hinted_choice = noted
+    try:
+        yield {k: v for k, v in spec.items() if not k.startswith("_")}
+    finally:
+        linsolve.USE_HINTS, solid_step.ITERATIVE, linsolve.AdaptiveSolverFactory._hinted_choice = saved
+
+
+#: The hinted solver choices of the current run (:func:`_rule`).
+CHOICES: list = []
 
 
 def image_npz(name: str, work: Path, berea: Path | None) -> Path:
@@ -148,8 +182,10 @@ def main(argv=None) -> int:
         t_end = float(base.drainage.t_end)
         rows = {}
         for run in names:
-            res = _run(sa, base.replace(name=run, solid=runs[run]))
-            row = {"solid": runs[run], "status": res["status"], "cpu_s_all": [res["cpu_s"]], "load": os.getloadavg()}
+            with _rule(runs[run]) as solid:
+                res = _run(sa, base.replace(name=run, solid=solid))
+            row = {"solid": runs[run], "status": res["status"], "cpu_s_all": [res["cpu_s"]], "load": os.getloadavg(),
+                   "hinted_choices": list(CHOICES)}
             if res["status"] == "ok":
                 u = p1_interpolate(res["mesh"], sa.at_time(res, t_end), tr["X"])[0]
                 row.update(n_nodes=res["n_nodes"], n_dofs=res["n_dofs"], leaf_counts=res["leaf_counts"],
@@ -160,7 +196,8 @@ def main(argv=None) -> int:
         for _ in range(args.repeat - 1):
             for run, row in rows.items():
                 if row["status"] == "ok" and min(row["cpu_s_all"]) < 10.0:
-                    row["cpu_s_all"].append(sa.run_variant(base.replace(name=run, solid=runs[run]))["cpu_s"])
+                    with _rule(runs[run]) as solid:
+                        row["cpu_s_all"].append(sa.run_variant(base.replace(name=run, solid=solid))["cpu_s"])
         for run, row in rows.items():
             row["cpu_s"] = min(row["cpu_s_all"])
             print(name, run, {k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()

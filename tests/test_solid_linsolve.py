@@ -205,7 +205,7 @@ def test_factor_work_prediction_follows_superlu(rock_model):
     the same graph (a denser node graph: more fill) is predicted dearer."""
     import scipy.sparse.linalg as spla
 
-    from porefsi.solid.footprint import lu_factor_flops
+    from porefsi.solid.footprint import lu_factor_flops, lu_solve_flops
 
     m = rock_model
     K = sp.csc_matrix(m.tangent(np.zeros(m.n_dofs), 1.0))
@@ -213,6 +213,8 @@ def test_factor_work_prediction_follows_superlu(rock_model):
     true = float(np.sum(np.diff(sp.csc_matrix(lu.L).indptr).astype(float) ** 2))
     pred = lu_factor_flops(K, m.free)
     assert 0.6 * true <= pred <= 1.6 * true
+    # a substitution touches every nonzero of L and U once
+    assert 0.75 * (lu.L.nnz + lu.U.nnz) <= lu_solve_flops(K, m.free) <= 1.6 * (lu.L.nnz + lu.U.nnz)  # 1.20 here
     K2 = sp.csr_matrix(K @ K)  # the squared operator's graph: every node joined to its second neighbours
     assert lu_factor_flops(K2, m.free) > 2 * pred
 
@@ -302,3 +304,71 @@ def test_model_recycle_reaches_its_amg_solves(rock_model, rng):
     assert len(solve.space.W) == 1
     np.testing.assert_allclose(solve(3.0 * b), 3.0 * x, rtol=0, atol=1e-7 * np.abs(x).max())
     assert m.solver_factory.last.iterations == 0
+
+
+def _fresh_auto(m):
+    """An "auto" rule on a fresh AMG factory (no hierarchy built yet) of the model ``m``."""
+    from porefsi.solid.linsolve import AdaptiveSolverFactory
+
+    return AdaptiveSolverFactory(AMGSolverFactory(m.dof_points, m.free))
+
+
+def test_frozen_hint_chooses_at_the_first_solve_by_predicted_cost(rock_model, rng):
+    """With ``expected_solves`` (the hint that a matrix is frozen) "auto" decides at the matrix's first
+    solve: the sparse LU when factor + that many substitutions is predicted cheaper than an AMG set-up
+    + HINT_ITERATIONS_PER_SOLVE iterations per solve, AMG-CG otherwise. On this rock (9,783 dofs) the
+    break-even is ~9 solves: half of it stays on AMG-CG (no factor, then or at the 2nd solve), twice
+    it factorises before the first solve (no hierarchy built). Both answer like the default (the
+    counting rule: AMG-CG here) to the CG tolerance; ``use_hints = False`` ignores the hint."""
+    from porefsi.solid import linsolve
+    from porefsi.solid.footprint import predict_solver_costs
+
+    m = rock_model
+    K = m.tangent(np.zeros(m.n_dofs), 1.0)
+    b = rng.standard_normal(m.n_dofs)
+    cost = predict_solver_costs(K, m.free)
+    per_solve = linsolve.HINT_ITERATIONS_PER_SOLVE * cost.amg_iteration_s - cost.lu_solve_s
+    n_even = (cost.factor_s - cost.amg_setup_s) / per_solve
+    assert per_solve > 0 and 4 < n_even < 40  # the rock sits where both choices occur
+    x_default = _fresh_auto(m)(K)(b)
+    few, many = _fresh_auto(m), _fresh_auto(m)
+    s_few, s_many = few(K, expected_solves=int(n_even / 2)), many(K, expected_solves=int(2 * n_even) + 1)
+    x_few, x_many = s_few(b), s_many(b)
+    assert few.predicted["choice"] == "amg" and few.n_factorizations == 0 and few.amg.n_setups == 1
+    assert many.predicted["choice"] == "direct" and many.n_factorizations == 1 and many.amg.ml is None
+    assert many.predicted["direct_s"] < many.predicted["amg_s"] and few.predicted["direct_s"] > few.predicted["amg_s"]
+    s_few(b)
+    assert few.n_factorizations == 0  # AMG-CG chosen: the counting rule waits for its 20th solve
+    for x in (x_few, x_many):
+        np.testing.assert_allclose(x, x_default, rtol=0, atol=1e-6 * np.abs(x_default).max())
+    assert np.linalg.norm(K @ x_many - b) <= 1e-10 * np.linalg.norm(b)
+    off = _fresh_auto(m)
+    off.use_hints = False
+    off(K, expected_solves=int(2 * n_even) + 1)(b)
+    assert off.n_factorizations == 0 and "choice" not in off.predicted
+
+
+def test_static_stepper_hints_its_frozen_tangent(rock_model):
+    """The static coupled stepper passes ``2 x horizon_steps`` solves as the hint for its reused
+    tangent: a long horizon factorises it at the first step, a short one (or none: the default rule)
+    stays on AMG-CG, and all three reach the same equilibrium to the Newton tolerance."""
+    import copy
+
+    from porefsi.coupling.solid_step import StaticStepper
+
+    F = np.zeros((rock_model.mesh.n_nodes, 3))
+    F[:, 0] = 1e-4 * np.sin(rock_model.mesh.points[:, 2] / 1e-4)  # a smooth lateral load, N
+    out = {}
+    for horizon in (0, 2, 100):
+        m = copy.copy(rock_model)
+        m._solver_factory = m._adaptive = None
+        m.horizon_steps = horizon
+        u0 = np.zeros(m.n_dofs)
+        u1, _ = StaticStepper(m).step(u0, u0, 0.0, 0.1, {0.1: F})
+        out[horizon] = (u1, m._adaptive)
+    assert out[0][1].n_factorizations == 0 and "expected_solves" not in out[0][1].predicted
+    assert out[2][1].n_factorizations == 0 and out[2][1].predicted["expected_solves"] == 4
+    assert out[100][1].n_factorizations == 1 and out[100][1].predicted["expected_solves"] == 200
+    u_ref = out[0][0]
+    for h in (2, 100):
+        np.testing.assert_allclose(out[h][0], u_ref, rtol=0, atol=1e-6 * np.abs(u_ref).max())

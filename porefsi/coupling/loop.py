@@ -152,6 +152,7 @@ class CoupledRun:
         self.current = NetworkState(problem.network, problem.interface, problem.extraction.labels)
         self.sim = DrainageSimulator(problem.network, problem.fluids, opts.drainage, axis=opts.axis)
         self.model = problem.model
+        self.model.horizon_steps = self.n_steps  # the frozen-tangent hint of "auto" (porefsi.solid.linsolve)
         self.u = np.zeros(self.model.n_dofs)
         self.v = np.zeros(self.model.n_dofs)
         cc = opts.coupling

@@ -28,7 +28,7 @@ __all__ = ["StaticStepper", "TDGStepper", "make_solid_stepper"]
 #: Loosest relative tolerance of an iterative linear solve inside the static modified Newton.
 LINEAR_RTOL_MAX = 0.1
 #: The model's linear solvers that are iterative (the static stepper warm-starts them).
-ITERATIVE = ("amg", "jacobi")
+ITERATIVE = ("amg", "jacobi", "auto")
 
 
 class _Stepper:
@@ -38,10 +38,10 @@ class _Stepper:
         self.model = model
         self._t = 0.0  # start of the current step (named in solver-failure messages)
 
-    def _make_solver(self, A):
+    def _make_solver(self, A, **hint):
         """The model's linear solver for A; a solver-library failure becomes a ConvergenceError."""
         try:
-            return self.model.make_solver(A)
+            return self.model.make_solver(A, **hint)
         except SOLVER_FAILURES as exc:
             raise solver_failure(exc, self._t) from exc
 
@@ -136,7 +136,7 @@ class StaticStepper(_Stepper):
                 self._lu, self._lu_at = None, (u.copy(), t)
             if self._lu is None:  # built here, or rebuilt from a checkpoint's (u, t)
                 self._K = model.tangent(*self._lu_at)
-                self._lu = self._make_solver(self._K)
+                self._lu = self._make_solver(self._K, expected_solves=2 * self.model.horizon_steps)
             x = self._newton(model, t, u, fext, scale)
             if x is not None:
                 return x

@@ -20,7 +20,8 @@ import resource
 
 __all__ = ["DIRECT_MAX_DOFS", "MEMORY_FLOOR", "lu_factor_bytes", "amg_bytes", "tangent_bytes", "memory_budget",
            "available_memory", "SolverChoice", "choose_linear_solver", "format_bytes", "lu_factor_flops",
-           "amg_iteration_work", "LU_SECONDS_PER_FLOP", "AMG_SECONDS_PER_WORK"]
+           "amg_iteration_work", "LU_SECONDS_PER_FLOP", "AMG_SECONDS_PER_WORK", "lu_solve_flops", "SolverCosts",
+           "predict_solver_costs", "LU_SOLVE_SECONDS_PER_FLOP", "AMG_OPERATOR_COMPLEXITY", "AMG_SETUP_WORK_PER_NNZ"]
 
 #: Fill of the LU, nonzeros of L + U = LU_FILL_COEF * n ** LU_FILL_EXP (n free dofs), fitted to the
 #: crops in the module docstring (within 10 % of each; the exponent still grows with n, so this
@@ -167,6 +168,60 @@ LU_SECONDS_PER_FLOP = 0.33e-9
 AMG_SECONDS_PER_WORK = 1.4e-9
 
 
+#: Seconds per multiply-add of a forward and back substitution with the factor, measured with
+#: :func:`lu_solve_flops` on the 120³ crops' uniform-6 and graded meshes (8k-37k dofs, one shared core,
+#: 2026-12-02): 1.1-2.0 ns, 1.4 typical.
+LU_SOLVE_SECONDS_PER_FLOP = 1.4e-9
+#: Nonzeros of a smoothed-aggregation hierarchy (all levels) per nonzero of the matrix: measured 2.16-2.50.
+AMG_OPERATOR_COMPLEXITY = 2.35
+#: Work units (:data:`AMG_SECONDS_PER_WORK`) of an AMG set-up per nonzero of the matrix: measured
+#: 0.25-0.55 us per nonzero on the same meshes (0.45 typical).
+AMG_SETUP_WORK_PER_NNZ = 320.0
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverCosts:
+    """Predicted seconds of the two ways of solving with one matrix (counted, not timed).
+
+    Attributes
+    ----------
+    factor_s, lu_solve_s : float
+        One sparse LU factorisation; one substitution with it.
+    amg_setup_s, amg_iteration_s : float
+        One AMG hierarchy build; one AMG-CG iteration.
+    """
+
+    factor_s: float
+    lu_solve_s: float
+    amg_setup_s: float
+    amg_iteration_s: float
+
+    def direct_s(self, solves: float) -> float:
+        """Factorise, then ``solves`` substitutions."""
+        return self.factor_s + solves * self.lu_solve_s
+
+    def amg_s(self, solves: float, iterations_per_solve: float, setup: bool = True) -> float:
+        """(Build a hierarchy, then) ``solves`` AMG-CG solves of ``iterations_per_solve`` iterations."""
+        return (self.amg_setup_s if setup else 0.0) + solves * iterations_per_solve * self.amg_iteration_s
+
+
+def predict_solver_costs(A, free, level_nnz=None) -> SolverCosts:
+    """Predicted :class:`SolverCosts` of the free-dof matrix ``A`` (n, n) with dofs ``free`` (n,).
+
+    The LU side from the node-level analysis (:func:`lu_factor_flops`, :func:`lu_solve_flops`; costs
+    1/15-1/20 of the factorisation), the AMG side from the nonzeros of ``level_nnz`` (a hierarchy
+    already built) or of :data:`AMG_OPERATOR_COMPLEXITY` times ``A``'s.
+    """
+    import numpy as np
+
+    counts = _node_column_counts(A, free)
+    levels = [AMG_OPERATOR_COMPLEXITY * A.nnz] if level_nnz is None else list(level_nnz)
+    return SolverCosts(factor_s=LU_SECONDS_PER_FLOP * 27.0 * float(np.sum(counts**2)),
+                       lu_solve_s=LU_SOLVE_SECONDS_PER_FLOP * 18.0 * float(np.sum(counts)),
+                       amg_setup_s=AMG_SECONDS_PER_WORK * AMG_SETUP_WORK_PER_NNZ * A.nnz,
+                       amg_iteration_s=AMG_SECONDS_PER_WORK * amg_iteration_work(levels, A.nnz))
+
+
 def lu_factor_flops(A, free) -> float:
     """Predicted multiply-adds of a sparse LU (minimum degree on AᵀA + A) of the elasticity matrix ``A``.
 
@@ -186,22 +241,47 @@ def lu_factor_flops(A, free) -> float:
         Full (interleaved, 3 per node) dof index of each row.
     """
     import numpy as np
+
+    return 27.0 * float(np.sum(_node_column_counts(A, free) ** 2))
+
+
+def lu_solve_flops(A, free) -> float:
+    """Predicted multiply-adds of one forward and back substitution with that factor.
+
+    ``2 x 9 x`` the nonzeros of the node-level factor of :func:`lu_factor_flops` (3 x 3 per node pair).
+    """
+    import numpy as np
+
+    return 18.0 * float(np.sum(_node_column_counts(A, free)))
+
+
+def _node_column_counts(A, free):
+    """Column counts (m,) of the factor of ``A``'s node graph (minimum degree on AᵀA + A, as the real LU).
+
+    The graph is read from one row per node (its first free dof: every free dof of a node couples to
+    the same neighbouring nodes) and factorised in single precision (the structure is all that is
+    used): 0.21 instead of 0.33 s on the Berea crop's graded mesh (37,379 dofs), the same counts.
+    """
+    import numpy as np
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    C = sp.coo_matrix(A)
-    _, nid = np.unique(np.asarray(free) // 3, return_inverse=True)
-    m = int(nid.max()) + 1 if len(nid) else 0
-    if m == 0:
-        return 0.0
-    G = sp.csr_matrix((np.full(C.nnz, -1.0), (nid[C.row], nid[C.col])), shape=(m, m))
+    A = sp.csr_matrix(A)
+    free = np.asarray(free)
+    if len(free) == 0:
+        return np.zeros(0)
+    node = free // 3
+    first = np.flatnonzero(np.r_[True, node[1:] != node[:-1]])  # free is sorted: a node's dofs are adjacent
+    nid = np.cumsum(np.r_[0, node[1:] != node[:-1]])  # node number of each free dof
+    R = A[first]
+    m = len(first)
+    G = sp.csr_matrix((np.full(R.nnz, -1.0, dtype=np.float32), nid[R.indices], R.indptr), shape=(m, m))
     G.sum_duplicates()
     G.data[:] = -1.0
-    G = G + sp.diags(np.asarray(-G.sum(axis=1)).ravel() + 2.0)  # a diagonally dominant SPD stand-in
-    lu = spla.splu(sp.csc_matrix(G), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+    G = G + sp.diags(np.asarray(-G.sum(axis=1)).ravel() + 2.0).astype(np.float32)  # a diagonally dominant SPD stand-in
+    lu = spla.splu(sp.csc_matrix(G, dtype=np.float32), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                    options={"SymmetricMode": True})
-    counts = np.diff(sp.csc_matrix(lu.L).indptr).astype(float)
-    return 27.0 * float(np.sum(counts**2))
+    return np.diff(lu.L.indptr).astype(float)
 
 
 def amg_iteration_work(level_nnz, matrix_nnz: int) -> float:

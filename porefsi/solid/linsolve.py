@@ -18,7 +18,13 @@ import scipy.sparse.linalg as spla
 from porefsi.errors import ConvergenceError, InputError
 from porefsi.solid._recycle import SolutionSpace
 from porefsi.solid._vcycle import VCycle, relax_candidates
-from porefsi.solid.footprint import AMG_SECONDS_PER_WORK, LU_SECONDS_PER_FLOP, amg_iteration_work, lu_factor_flops
+from porefsi.solid.footprint import (
+    AMG_SECONDS_PER_WORK,
+    LU_SECONDS_PER_FLOP,
+    amg_iteration_work,
+    lu_factor_flops,
+    predict_solver_costs,
+)
 
 __all__ = ["pcg", "rigid_body_modes", "AMGSolverFactory", "jacobi_solver_factory", "direct_solver_factory",
            "AdaptiveSolverFactory", "SolveInfo", "SolutionSpace", "single_thread_blas", "IndefiniteMatrixError"]
@@ -401,6 +407,13 @@ FACTOR_AFTER_SOLVES = 20
 #: Largest system "auto" factorises: measured 77,174 dofs factor in 11-13 s with 2.1 GiB process
 #: peak (two factors alive); fill grows like n^(4/3), so ~1.8e5 dofs (coarsen 3) would need ~4+ GiB.
 DIRECT_MAX_DOFS = 100_000
+#: The frozen-matrix hint (``expected_solves``) is used: the switch (False: "auto" ignores hints and
+#: decides by counting alone, as before 2026-12-02 night).
+USE_HINTS = True
+#: AMG-CG iterations per solve a hinted matrix is predicted to take: the static coupled run's frozen
+#: tangent, warm-started, measured 6.7-9 on the 120³ crops' graded meshes (a full solve ~15, its Newton
+#: correction 2-3); docs/solid.md section 5.
+HINT_ITERATIONS_PER_SOLVE = 8.0
 
 
 class AdaptiveSolverFactory:
@@ -420,6 +433,13 @@ class AdaptiveSolverFactory:
     (37,379 dofs, 699 factor nonzeros per dof) repays its factor after ~40 of its coupled
     run's solves, the sample's graded mesh (31,438 dofs, 471 per dof) after ~24, so the 17 solves
     of a 10-s quasi-static run stay on AMG-CG on both.
+
+    A caller that knows a matrix is frozen passes ``expected_solves`` (the hint: the static coupled
+    stepper's tangent serves ~2 solves per exchange step): then the choice is made at the matrix's
+    first solve, from predicted costs of that many solves either way
+    (:func:`~porefsi.solid.footprint.predict_solver_costs`, :data:`HINT_ITERATIONS_PER_SOLVE`);
+    a matrix left on AMG-CG still falls back to the counting rule if it serves more solves than
+    expected. ``use_hints = False`` (default :data:`USE_HINTS`) ignores hints.
 
     Parameters
     ----------
@@ -447,20 +467,37 @@ class AdaptiveSolverFactory:
         self.factor_after, self.direct_max_dofs = int(factor_after), int(direct_max_dofs)
         self.n_factorizations = 0
         self.predicted: dict = {}
+        self.use_hints = USE_HINTS
+
+    def _hinted_choice(self, A, solves: int) -> bool:
+        """Factorise a frozen matrix expected to serve ``solves`` solves (at its first)? Records ``predicted``."""
+        built = self.amg.ml is not None
+        cost = predict_solver_costs(A, self.amg.free, [lv.A.nnz for lv in self.amg.ml.levels] if built else None)
+        direct, amg = cost.direct_s(solves), cost.amg_s(solves, HINT_ITERATIONS_PER_SOLVE, setup=not built)
+        self.predicted = {"factor_s": cost.factor_s, "expected_solves": solves, "direct_s": direct, "amg_s": amg,
+                          "choice": "direct" if direct < amg else "amg"}
+        return direct < amg
 
     def _amg_seconds(self, A, iterations: int) -> float:
         """Predicted seconds of ``iterations`` AMG-CG iterations on ``A`` with the current hierarchy."""
         levels = [lv.A.nnz for lv in self.amg.ml.levels]
         return AMG_SECONDS_PER_WORK * iterations * amg_iteration_work(levels, A.nnz)
 
-    def __call__(self, A: sp.spmatrix):
-        """Return ``solve(b) -> x`` for the free-dof SPD matrix ``A``."""
+    def __call__(self, A: sp.spmatrix, expected_solves: int | None = None):
+        """Return ``solve(b) -> x`` for the free-dof SPD matrix ``A`` (expected to serve ``expected_solves``)."""
         A = sp.csr_matrix(A)
         can_factor = A.shape[0] <= self.direct_max_dofs
+        hint = int(expected_solves) if self.use_hints and expected_solves else None
         state = {"solves": 0, "lu": None, "amg": None, "iterations": 0, "factor_s": None}
 
         def factor_now() -> bool:
-            if state["lu"] is not None or not can_factor or state["solves"] < self.factor_after:
+            if state["lu"] is not None or not can_factor:
+                return False
+            if hint is not None and state["solves"] == 0:
+                choice = self._hinted_choice(A, hint)
+                state["factor_s"] = self.predicted["factor_s"]
+                return choice
+            if state["solves"] < self.factor_after:
                 return False
             if state["amg"] is None:  # factor_after = 0: no AMG-CG tried, factorise at once
                 return True

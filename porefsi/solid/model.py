@@ -63,6 +63,9 @@ class SolidModel:
 
     Attributes
     ----------
+    horizon_steps : int
+        Exchange steps of the run ahead (0: unknown; set by the coupled loop): a stepper that
+        keeps its tangent frozen hints "auto" with the solves it expects from it.
     recycle : int
         Earlier solutions each AMG-CG matrix keeps to start later solves from
         (:class:`~porefsi.solid.linsolve.SolutionSpace`; default 0: none); set it before the first
@@ -86,6 +89,7 @@ class SolidModel:
             raise InputError(f"linear_solver must be 'auto', 'amg', 'jacobi' or 'direct', got {linear_solver!r}")
         self.linear_solver = linear_solver
         self.recycle = 0
+        self.horizon_steps = 0
         if backend not in ("auto", "numba", "skfem"):
             raise InputError(f"backend must be 'auto', 'numba' or 'skfem', got {backend!r}")
         if order == 2 and backend == "numba":
@@ -241,8 +245,12 @@ class SolidModel:
         return M[self.free][:, self.free].tocsr()
 
     # ---- solvers and post-processing ------------------------------------------------------
-    def make_solver(self, A: sp.spmatrix):
+    def make_solver(self, A: sp.spmatrix, *, expected_solves: int | None = None):
         """``solve(b) -> x`` for an SPD free-dof matrix A (e.g. K or M + c K).
+
+        ``expected_solves``: the caller's hint that A is frozen and will serve about that many
+        solves ("auto" then chooses LU or AMG-CG at the first solve, from predicted costs; the
+        other solvers ignore it).
 
         Per ``linear_solver``. "auto": below :data:`SMALL_DOFS` free dofs a sparse LU (factoring
         is cheap there); above, :class:`~porefsi.solid.linsolve.AdaptiveSolverFactory`: CG
@@ -264,7 +272,7 @@ class SolidModel:
         if kind == "auto":
             if self._adaptive is None:
                 self._adaptive = AdaptiveSolverFactory(self.solver_factory)
-            return self._adaptive(A)
+            return self._adaptive(A, expected_solves)
         return self.solver_factory(A)
 
     @property
