@@ -195,7 +195,7 @@ def summarise(args) -> dict:
     return summary
 
 
-def _mean(summary: dict, key: str) -> None:
+def _mean(summary: dict, key: str, quiet: bool = False) -> None:
     """Three-axis mean of ``summary``'s corrected k against the DNS mean (the axes' bands averaged, not
     combined in quadrature: their GCIs are not independent)."""
     axes = [a for a in "xyz" if a in summary and "k_mD" in summary[a]]
@@ -204,7 +204,8 @@ def _mean(summary: dict, key: str) -> None:
         unc = sum(summary[a]["uncertainty_mD"] for a in axes) / 3
         summary[key] = {"k_mD": mean, "uncertainty_mD": unc, "vs_dns_mean": mean / 1286.0,
                         "vs_dns_range": [(mean - unc) / 1286.0, (mean + unc) / 1286.0]}
-        print(key, json.dumps(summary[key]), flush=True)
+        if not quiet:
+            print(key, json.dumps(summary[key]), flush=True)
 
 
 def _order_variants(merged, native, summary) -> None:
@@ -219,7 +220,7 @@ def _order_variants(merged, native, summary) -> None:
             continue
         var = {axis: _axis_summary(side, lv, o, k, native.get(axis), order=p)
                for axis, (side, lv, o, k) in merged.items()}
-        _mean(var, "mean")
+        _mean(var, "mean", quiet=True)
         out = {"order": round(p, 3), "factor, k_mD per axis": {a: (round(v["factor"], 4), round(v.get("k_mD", 0), 1))
                                                                 for a, v in var.items() if a != "mean"},
                "mean_mD": var.get("mean", {}).get("k_mD"), "vs_dns_mean": var.get("mean", {}).get("vs_dns_mean")}
