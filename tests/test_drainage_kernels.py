@@ -179,18 +179,32 @@ def test_edge_states_and_assembly_match_twin_to_the_bit(rng, bc):
 
 
 def test_open_path_matches_the_edge_states_twin(rng):
-    """``_open_path`` is ``men.any() or (fa & ~inner).any()`` of the NumPy edge-state twin."""
+    """``_open_path`` is ``men.any() or (fa & ~inner).any()`` of the NumPy edge-state twin.
+
+    Random states, and states with a single invaded edge (every edge in turn) and no non-wetting
+    outlet conduit, so that each edge kind decides the answer alone (trapped ends included).
+    """
     g = _graph(rng)
     n, E = g.n, g.n_edges
-    seen = set()
-    for i in range(60):
-        full = rng.random(n) < (0.02 if i % 3 == 0 else 0.4)
-        trapped = ~full & (rng.random(n) < 0.1)
-        inv = rng.random(E) < (0.05 if i % 2 else 0.5)
-        closed = rng.random(E) < (0.9 if i % 4 == 0 else 0.2)
+
+    def check(full, trapped, inv, closed):
         _, men, fa = ref.edge_states(g, full, trapped, inv, closed)
         want = bool(men.any() or (fa & ~g.inner).any())
-        got = kern._open_path((g.a, g.b, n), g.inner, (full, trapped, inv, closed))
-        assert got == want
-        seen.add(want)
+        assert kern._open_path((g.a, g.b, n), g.inner, (full, trapped, inv, closed)) == want
+        return want
+
+    seen = set()
+    for i in range(30):
+        full = rng.random(n) < (0.02 if i % 3 == 0 else 0.4)
+        trapped = ~full & (rng.random(n) < 0.1)
+        seen.add(check(full, trapped, rng.random(E) < (0.05 if i % 2 else 0.5), rng.random(E) < 0.2))
+    outlet_pore = np.zeros(n, dtype=bool)
+    outlet_pore[g.a[~g.inner & (g.a < n)]] = True
+    for _ in range(4):
+        full = (rng.random(n) < 0.4) & ~outlet_pore
+        trapped = ~full & (rng.random(n) < 0.3)
+        for e in range(E):
+            inv = np.zeros(E, dtype=bool)
+            inv[e] = True
+            seen.add(check(full, trapped, inv, np.zeros(E, dtype=bool)))
     assert seen == {True, False}  # both answers exercised

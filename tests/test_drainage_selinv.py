@@ -131,7 +131,7 @@ def test_selinv_adaptive_run_makes_the_exact_schemes_events(ca):
 
 
 def test_bookkeeping_kernels_match_numpy_twins_to_the_bit():
-    """``_take_nonzeros``, ``_changed_rows`` and ``_capacitance_matrix`` against the NumPy/SciPy expressions they replace."""
+    """``_take_nonzeros``, ``_changed_rows``, ``_capacitance_matrix`` against the NumPy/SciPy code they replace."""
     rng = np.random.default_rng(5)
     for _ in range(10):
         y = np.where(rng.random(300) < 0.2, rng.standard_normal(300), 0.0)

@@ -164,13 +164,17 @@ def _capacitance_matrix(W, cS, Dp, Di, Dx):
     in stored order), so the matrix is the same to the last bit.
     """
     m = cS.shape[0]
+    WT = np.empty((m, m))  # WT[j, c] = W_SS[c, j]: the inner loop below reads rows
+    for c in range(m):
+        for j in range(m):
+            WT[j, c] = W[cS[c], cS[j]]
     Y = np.zeros((m, m))  # Y[i, c] = sum_j D[j, i] W_SS[c, j]
     for j in range(m):
         for p in range(Dp[j], Dp[j + 1]):
             i = Di[p]
             v = Dx[p]
             for c in range(m):
-                Y[i, c] += v * W[cS[c], cS[j]]
+                Y[i, c] += v * WT[j, c]
     M = np.empty((m, m))
     for c in range(m):
         for i in range(m):
@@ -239,6 +243,7 @@ class SelectedInverse:
         self.k = 0
         self.batches: list[np.ndarray] = []  # the nodes added, batch by batch (a restored base repeats them)
         self.work = np.zeros(n)
+        self.work_loc = np.full(n, -1, dtype=np.int64)  # position in S of a node (-1: not in S), between uses
         self._split_block(L, U)
         self.L3 = (self.Lp, self.Li, self.Lx)
         self.R4 = (self.Rp, self.Ri, self.Rx, self.Ud)
@@ -410,10 +415,11 @@ def _update(ps, A, b):
     if S.size > ps.max_rank or base.k + np.count_nonzero(base.slot_of[S] < 0) > base.cap:
         return None
     base.add(S)
-    loc = np.full(A.shape[0], -1, dtype=np.int64)
+    loc = base.work_loc  # -1 outside S (restored below)
     loc[S] = np.arange(S.size)
     rr, cc = base.rows[nz], A.indices[nz]
     D = sp.csr_array(((A.data[nz] - base.data[nz]) * s[rr] * s[cc], (loc[rr], loc[cc])), shape=(S.size, S.size))
+    loc[S] = -1
     try:
         lu_m = base.capacitance(S, D)
     except (ValueError, np.linalg.LinAlgError):
