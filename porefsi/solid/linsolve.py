@@ -410,10 +410,11 @@ DIRECT_MAX_DOFS = 100_000
 #: The frozen-matrix hint (``expected_solves``) is used: the switch (False: "auto" ignores hints and
 #: decides by counting alone, as before 2026-12-02 night).
 USE_HINTS = True
-#: AMG-CG iterations per solve a hinted matrix is predicted to take: the static coupled run's frozen
-#: tangent, warm-started, measured 6.7-9 on the 120³ crops' graded meshes (a full solve ~15, its Newton
-#: correction 2-3); docs/solid.md section 5.
-HINT_ITERATIONS_PER_SOLVE = 8.0
+#: AMG-CG iterations per announced solve of a hinted matrix. The static coupled stepper announces 2 per
+#: exchange step (an upper bound: its warm start skips many); measured over the 10-s run (CG iterations /
+#: 20) on uniform 6, graded 3_12 and graded 3_12 with ligaments of the Berea crop, the sample and the
+#: blobs (2026-12-02): 5.4, 6.4, 6.6; 4.7, 5.6, 5.8; 1.5, 1.5, 1.6 (mean 4.6); docs/solid.md section 5.
+HINT_ITERATIONS_PER_SOLVE = 5.0
 
 
 class AdaptiveSolverFactory:
