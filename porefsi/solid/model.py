@@ -258,7 +258,9 @@ class SolidModel:
         and reused across matrices while CG converges within 40 iterations), so Newton tangents and
         per-step TDG tangents stay on AMG-CG; a matrix that keeps serving solves (a frozen TDG
         :math:`M^*`) is factorised once the AMG-CG work spent on it reaches its predicted
-        factorisation cost (not before its 20th solve), up to 1e5 dofs (measured on the 57k-tet
+        factorisation cost (not before its 20th solve; when the caller announces the number of
+        solves a frozen tangent will serve, ``make_solver(A, expected_solves=n)``, LU or AMG-CG is
+        chosen at the first solve from the predicted costs), up to 1e5 dofs (measured on the 57k-tet
         sample: 0.12 s per TDG step with the factor vs 0.3-0.9 s with AMG-CG; docs/solid.md
         sections 5 and 8). Above 1e5 dofs it stays on AMG-CG (factor memory).
         """
