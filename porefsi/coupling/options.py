@@ -52,10 +52,11 @@ class SolidOptions:
     linear_solver: str = option("direct", "solid linear solves: direct = sparse LU factorised once and reused while "
                                 "the tangent holds (fastest to ~1e5 dofs; above 1e5 free dofs, or where the factor "
                                 "would not fit in memory, AMG-CG is used instead, with a warning); amg = CG + smoothed "
-                                "aggregation (large meshes); jacobi = Jacobi-CG; auto = LU or AMG-CG per matrix, chosen "
-                                "at its first solve from counted predicted costs when the stepper announces how often "
-                                "its frozen tangent will be reused, else AMG-CG switching to a reused LU once the "
-                                "AMG-CG work spent on it reaches its predicted factorisation (up to 1e5 dofs)",
+                                "aggregation (large meshes); jacobi = Jacobi-CG; auto = LU or AMG-CG per matrix, "
+                                "chosen at its first solve from counted predicted costs when the stepper announces "
+                                "how often its frozen tangent will be reused, else AMG-CG switching to a reused LU "
+                                "once the AMG-CG work spent on it reaches its predicted factorisation (up to 1e5 "
+                                "dofs)",
                                 choices=("direct", "amg", "jacobi", "auto"))
     load_axis: str = option("z", "axis of the mechanical load (fixed low face, moving high face)",
                             choices=("x", "y", "z"))
