@@ -55,6 +55,8 @@ def main(argv=None):
     p.add_argument("--net", default="lat100k")
     p.add_argument("--ca", default="paper")
     p.add_argument("--opt", nargs="*", default=[], metavar="KEY=VALUE")
+    p.add_argument("--scheme", default="adaptive", choices=("adaptive", "exact"),
+                   help="exact: the reference scheme on the same network (resumable with --checkpoint)")
     p.add_argument("--max-cpu", type=float, default=900.0, help="stop (no result) after this many CPU seconds")
     p.add_argument("--max-wall", type=float, default=1440.0,
                    help="stop (no result) after this many wall seconds (the shared heavy-job lock's turn)")
@@ -74,7 +76,7 @@ def main(argv=None):
     rate = _rate(args.ca, net, fl)
     ca = fl.capillary_number(rate, float(np.prod(net.extent[1:])))
     opts = {k: _number(v) for k, v in (o.split("=", 1) for o in args.opt)}
-    options = DrainageOptions(rate=rate, t_end=1e12, scheme="adaptive", skip_solves="on", **opts)
+    options = DrainageOptions(rate=rate, t_end=1e12, scheme=args.scheme, skip_solves="on", **opts)
     from porefsi.network.lattice import lattice_network
 
     warm = lattice_network((8, 6, 6), 4e-5, np.random.default_rng(0))  # numba caches outside the timing
@@ -91,8 +93,9 @@ def main(argv=None):
     def report(sim, seconds):
         c = sim.counters
         cpu = time.process_time() - c0
-        print(f"  t = {sim.t:.4g} s fills {c['n_fills']} certified {c['n_certified_fills']} solves {c['n_solves']} "
-              f"local {c['n_local_solves']} setups {c['n_solver_setups']} cpu {cpu:.0f} s load {_load()}", flush=True)
+        print(f"  t = {sim.t:.4g} s fills {c['n_fills']} certified {c.get('n_certified_fills', 0)} "
+              f"solves {c['n_solves']} local {c.get('n_local_solves', 0)} setups {c['n_solver_setups']} "
+              f"cpu {cpu:.0f} s load {_load()}", flush=True)
         if cpu > args.max_cpu or time.perf_counter() - w_seg > args.max_wall:
             if args.checkpoint:  # the run's own deferred interrupt: saved after this event, then stopped
                 os.kill(os.getpid(), signal.SIGINT)
@@ -128,14 +131,15 @@ def main(argv=None):
     t = res.invasion_time
     a, b = np.isfinite(t), ip.pore_sequence >= 0
     both = a & b
-    rec = dict(net=args.net, n_pores=net.n_pores, ca=ca, options=opts, cpu_s=cpu, wall_s=wall, counters=res.counters,
+    rec = dict(net=args.net, n_pores=net.n_pores, ca=ca, scheme=args.scheme, options=opts,
+               cpu_s=cpu, wall_s=wall, counters=res.counters,
                segments=prev["segments"] + 1, peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                breakthrough_time=res.breakthrough_time, breakthrough_sw=res.breakthrough_sw,
                spearman_vs_ip=_spearman(t[both], ip.pore_sequence[both]), only_dpn=int((a & ~b).sum()),
                only_ip=int((b & ~a).sum()), ip_breakthrough_fills=int(ip.breakthrough_step + 1),
                ip_breakthrough_time=float(net.pore_volume[b].sum() / rate), load=_load())
     c = res.counters
-    print(f"{args.net}: cpu {cpu:.1f} s, wall {wall:.1f} s, {c['n_fills']} fills ({c['n_certified_fills']} "
+    print(f"{args.net}: cpu {cpu:.1f} s, wall {wall:.1f} s, {c['n_fills']} fills ({c.get('n_certified_fills', 0)} "
           f"certified), {c['n_solves']} solves ({c['n_solves'] / max(c['n_fills'], 1):.2f} per fill), "
           f"{c['n_solver_setups']} factorisations, breakthrough t = {res.breakthrough_time:.5g} s Sw = "
           f"{res.breakthrough_sw:.4f}; invasion percolation: t_bt = {rec['ip_breakthrough_time']:.5g} s, Spearman "
