@@ -6,7 +6,7 @@ the loop's own per-stage timing). Peak memory is the resident set (``VmHWM`` res
 Linux) -- the true peak of the stage, with what the process already held.
 
 Run: ``python benchmarks/bench_coupled_large.py [--sizes 120 200 280 400] [--t-end 20] [--cap-gib 9]``
-(the image defaults to ``/work/shared/data/berea_icl_400.npz``; crops are centred).
+(the image defaults to ``berea_icl_400.npz`` in ``$POREFSI_DATA`` or ``../shared/data``; crops are centred).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _data import data_file  # noqa: E402
 from _stages import Stages, cap_memory  # noqa: E402
 
 from porefsi.case import Case  # noqa: E402
@@ -33,7 +34,7 @@ from porefsi.coupling.problem import CoupledProblem, build_solid  # noqa: E402
 from porefsi.image import crop, percolating_cluster, read_image  # noqa: E402
 from porefsi.network.extract import extract_network  # noqa: E402
 
-DEFAULT_IMAGE = "/work/shared/data/berea_icl_400.npz"
+DEFAULT_IMAGE = str(data_file("berea_icl_400.npz"))
 
 
 def run(path: str, size: int, t_end: float, solver: str | None, max_steps: int | None) -> dict:

@@ -29,12 +29,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
 import numpy as np  # noqa: E402
+from _data import data_file  # noqa: E402
 
 from porefsi.case import Case, problem_from_case  # noqa: E402
 from porefsi.coupling import CoupledRun  # noqa: E402
 from porefsi.coupling.linear_step import clear_response_cache, max_green_lagrange  # noqa: E402
 
-BEREA_400 = Path("/work/shared/data/berea_icl_400.npz")
+BEREA_400 = data_file("berea_icl_400.npz")
 FLOW_RATES = {"A": 1.25e-13, "B": 2.5e-13, "C": 5e-11, "D": 5e-10}
 
 

@@ -49,6 +49,7 @@ from scipy import ndimage, sparse
 from scipy.sparse.linalg import spsolve
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _data import data_file  # noqa: E402
 from bench_network_accuracy import BEREA_VOXEL, blobs, sphere_pack  # noqa: E402
 
 from porefsi.image.voxel_image import VoxelImage  # noqa: E402
@@ -286,7 +287,7 @@ def report(res: dict) -> None:
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default="/work/shared/data")
+    ap.add_argument("--data", default=str(data_file("")))
     ap.add_argument("--json", default=None)
     ap.add_argument("--only", default=None, help="comma-separated image names")
     ap.add_argument("--all-labels", action="store_true", help="section of every pore voxel, not the two labels")
