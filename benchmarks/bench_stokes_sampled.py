@@ -250,13 +250,12 @@ def _synthetic(name: str, n: int):
     return VoxelImage(sphere_pack(n=n, porosity=0.35, r_mean=6.0).astype(np.uint8), BEREA_VOXEL)
 
 
-def _validation_image(case: str, n: int, image_path: str):
+def _validation_image(case: str, n: int, image_path: str, lo: int = 150):
     if case in ("blobs", "spheres"):
         return f"{case} {n}^3", _synthetic(case, n)
     if case == "sample":
         img = load_sample()
         return f"built-in sample {img.shape[0]}^3", img
-    lo = 150
     img = read_image(image_path)
     sub = np.ascontiguousarray(img.phases[lo:lo + n, lo:lo + n, lo:lo + n])
     return f"Berea 400^3 crop {n}^3 @({lo},{lo},{lo})", VoxelImage(sub, img.voxel_size)
@@ -280,17 +279,35 @@ def _reuse_whole(args, name, levels):
     return None
 
 
+def _write_whole(args, name, img, levels, ext, cpu) -> None:
+    """One ``part: whole`` row: the whole image's levels, for a later ``validate --reuse`` (the whole
+    refinement and the blocks then run in separate lock turns)."""
+    e = ext.extrapolation
+    row = {"case": name, "part": "whole", "axis": args.axis, "porosity": img.porosity, "levels": list(levels),
+           "whole_levels_mD": list(e.values), "whole_k_inf_mD": e.value, "whole_gci_mD": e.uncertainty,
+           "whole_order": e.order, "whole_observed_order": e.observed_order,
+           "iterations": [r.iterations for r in ext.results], "cpu_whole_s": round(cpu, 1), "load": _load()}
+    print(json.dumps(row), flush=True)
+    if args.out:
+        with open(args.out, "a") as fh:
+            fh.write(json.dumps(row) + "\n")
+
+
 def validate(args) -> list:
     """Sampled estimate against whole-image Richardson on images where the whole refinement fits."""
     rows = []
     levels = _levels(args.levels)
     for case in args.cases.split(","):
-        name, img = _validation_image(case, args.n, args.image)
+        name, img = _validation_image(case, args.n, args.image, args.at)
         c0 = time.process_time()
         whole = _reuse_whole(args, name, levels)
         if whole is None:
             ext = extrapolated_permeability(img, args.axis, levels=levels, rtol=args.rtol)
             whole = (ext.extrapolation, ext.results[0])
+            if args.whole_only:
+                _write_whole(args, name, img, levels, ext, time.process_time() - c0)
+        if args.whole_only:
+            continue
         c_whole = time.process_time() - c0
         c0 = time.process_time()
         s = sampled_permeability(img, args.axis, levels=levels, blocks=args.blocks, block=args.block,
@@ -352,6 +369,9 @@ def main(argv=None):
     v.add_argument("--image", default=str(DATA / "berea_icl_400.npz"))
     v.add_argument("--out", default=None)
     v.add_argument("--reuse", action="store_true", help="reuse the whole-image levels of an earlier row in --out")
+    v.add_argument("--whole-only", action="store_true",
+                   help="solve and write the whole image's levels only (a 'part: whole' row for a later --reuse)")
+    v.add_argument("--at", type=int, default=150, help="berea: the crop's first voxel on every axis (default 150)")
     args = ap.parse_args(argv)
     return {"blocks": run_blocks, "summarise": summarise, "validate": validate}[args.study](args)
 

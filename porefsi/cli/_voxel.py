@@ -17,7 +17,8 @@ __all__ = ["add_voxel_args", "reject_voxel_options", "run_voxel_permeability"]
 
 #: ``--method voxel`` options and their defaults (a value other than these with --method network is an error).
 _VOXEL_DEFAULTS = {"boundary": "pressure", "buffer": 2, "coarsen": 1, "rtol": 1e-6, "maxiter": 3000, "refine": 1,
-                   "extrapolate": False, "wall": None, "sampled": False, "blocks": None, "block": None}
+                   "extrapolate": False, "wall": None, "sampled": False, "blocks": None, "block": None,
+                   "resume": None}
 
 
 def reject_voxel_options(args: argparse.Namespace) -> None:
@@ -92,8 +93,10 @@ def _voxel_image(args: argparse.Namespace, extract_options, sample: str):
     ext_opts += ["--keep-isolated"] if getattr(args, "keep_isolated", False) else []
     if ext_opts:
         raise InputError(f"{' '.join(ext_opts)}: network-extraction options, unused by --method voxel; drop them")
-    if not (args.extrapolate or args.sampled) and (args.blocks is not None or args.block is not None):
-        raise InputError("--blocks/--block set the sampled estimate: add --extrapolate or --sampled, or drop them")
+    if not (args.extrapolate or args.sampled) and (args.blocks is not None or args.block is not None
+                                                   or args.resume is not None):
+        raise InputError("--blocks/--block/--resume set the sampled estimate: add --extrapolate or --sampled, "
+                         "or drop them")
     from porefsi.image.ops import downsample
 
     image = image_from_args(args, source)
@@ -107,11 +110,19 @@ def _voxel_image(args: argparse.Namespace, extract_options, sample: str):
 
 def _extrapolate(work, args: argparse.Namespace, kw: dict):
     """``(result, summary dict)`` of --extrapolate / --sampled."""
-    from porefsi.stokes import extrapolated_permeability, extrapolation_mode, sampled_permeability
+    from porefsi.stokes import (
+        extrapolated_permeability,
+        extrapolation_mode,
+        resume_sampled_permeability,
+        sampled_permeability,
+    )
 
     top = args.refine if args.refine >= 2 else 3
     buffer = args.buffer if args.boundary == "pressure" else 0
     mode = extrapolation_mode(work, args.axis, top, buffer, sampled=args.sampled)
+    if mode == "whole" and args.resume is not None:
+        raise InputError(f"--resume keeps the sampled estimate's solves, but refine {top} of the whole image fits "
+                         "and is used: add --sampled, or drop --resume")
     if mode == "whole":
         ext = extrapolated_permeability(work, args.axis, levels=range(max(1, top - 2), top + 1), **kw)
         e = ext.extrapolation
@@ -124,9 +135,12 @@ def _extrapolate(work, args: argparse.Namespace, kw: dict):
             "error_finest": e.error_at(e.levels[-1]), "error_unrefined": ext.native_error,
             "iterations_levels": [r.iterations for r in ext.results],
         }
-    levels = (1, 2) if top == 2 else (1, top - 1, top)
+    levels = tuple(range(1, top + 1))  # every level: the order from the last three (as the benchmark)
     blocks = args.blocks if args.blocks is not None else 8
-    s = sampled_permeability(work, args.axis, levels=levels, blocks=blocks, block=args.block, **kw)
+    if args.resume is not None:
+        s = resume_sampled_permeability(work, args.resume, args.axis, levels, blocks, args.block, **kw)
+    else:
+        s = sampled_permeability(work, args.axis, levels=levels, blocks=blocks, block=args.block, **kw)
     return s, {
         "mode": "sampled", "reason": "--sampled" if args.sampled else f"refine {top} of the whole image does not fit",
         "levels": list(s.levels), "permeability_mD_native": s.native_k_mD, "factor": s.factor,
@@ -135,6 +149,7 @@ def _extrapolate(work, args: argparse.Namespace, kw: dict):
         "order_observed": s.order_observed, "blocks": len(s.blocks), "block_side": s.blocks[0].side,
         "block_origins": [list(b.origin) for b in s.blocks], "block_factors": [b.factor for b in s.blocks],
         "block_permeability_mD_levels": [list(b.k_mD) for b in s.blocks],
+        "block_cpu_seconds": [b.cpu_seconds for b in s.blocks], "resume_file": args.resume,
     }
 
 
@@ -164,10 +179,15 @@ def add_voxel_args(p: argparse.ArgumentParser) -> None:
                    "image at its own resolution times the pooled k_inf/k_1 of --blocks sub-blocks solved at "
                    "refinements 1..N (--extrapolate picks it by itself when refine N of the whole image does not fit)")
     g.add_argument("--blocks", type=_at_least_two, default=d["blocks"], metavar="K",
-                   help="--sampled / --extrapolate: number of sub-blocks (stratified grid; default 8)")
+                   help="--sampled / --extrapolate: number of sub-blocks (stratified grid; default 8), each solved "
+                   "at refinements 1, 2, ..., N")
     g.add_argument("--block", type=positive_int, default=d["block"], metavar="B",
                    help="--sampled / --extrapolate: block side in voxels (default: the largest <= 40 whose finest "
                    "level fits in memory)")
+    g.add_argument("--resume", default=d["resume"], metavar="FILE",
+                   help="--sampled / --extrapolate (sampled): keep every finished solve (native and each block "
+                   "level) in FILE, JSON lines, and take them from it when run again with the same image, axis, "
+                   "block side and options (porefsi.stokes.sampled_resume); an interrupted run loses one solve")
     g.add_argument("--wall", choices=("channel", "ghost"), default=d["wall"],
                    help="tangential no-slip closure: channel (exact for plane channels of any width in voxels; "
                    "the default) or ghost (reflection u_ghost = -u, the earlier scheme; 1.5x the flux of a "

@@ -12,10 +12,11 @@ from porefsi.stokes.sampled import (
     extrapolation_mode,
     sampled_permeability,
 )
+from porefsi.stokes.sampled_resume import resume_sampled_permeability
 from porefsi.units import MILLIDARCY
 
 __all__ = ["voxel_permeability", "StokesOptions", "stokes_options", "StokesResult", "plane_fluxes", "MILLIDARCY",
            "extrapolated_permeability",
            "ExtrapolatedPermeability", "Extrapolation", "richardson",
            "sampled_permeability", "SampledExtrapolation", "SampledBlock", "choose_blocks",
-           "extrapolation_mode"]
+           "extrapolation_mode", "resume_sampled_permeability"]

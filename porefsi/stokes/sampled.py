@@ -347,11 +347,42 @@ def sampled_permeability(image: VoxelImage, axis="x", levels=(1, 2, 3), blocks: 
         Fewer than two blocks carry flow along ``axis``, or the whole image does not.
     """
     t0 = time.perf_counter()
+    opts = _sampled_options(image, options, overrides)
+    plan = prepare_sampled(image, axis, levels, blocks, block, native, opts)
+    return run_sampled(image, plan, opts, None, t0)
+
+
+def _sampled_options(image, options, overrides) -> StokesOptions:
+    """The options of every solve of a sampled estimate (``refine`` and ``fields`` left alone), validated."""
     if not isinstance(image, VoxelImage):
         raise InputError(f"expected a VoxelImage, got {type(image).__name__}; read one with porefsi.read_image")
     opts = stokes_options(options, **overrides)
     if opts.refine != 1 or opts.fields:
         raise InputError("sampled_permeability sets refine itself (pass levels) and returns no fields")
+    return opts
+
+
+@dataclasses.dataclass(frozen=True)
+class SampledPlan:
+    """What a sampled estimate will solve (:func:`prepare_sampled`).
+
+    Attributes: ``ax`` the axis index; ``levels``; ``side`` of the blocks, voxels; ``chosen``, the
+    blocks' ``(origin, flowing porosity)``; ``given``, the native ``(k_mD, StokesResult or None)``,
+    or None (solve it).
+    """
+
+    ax: int
+    levels: tuple
+    side: int
+    chosen: tuple
+    given: tuple | None
+
+
+def prepare_sampled(image: VoxelImage, axis, levels, blocks, block, native, opts: StokesOptions) -> SampledPlan:
+    """Validate a sampled estimate's parameters and choose its blocks, solving nothing.
+
+    Raises as :func:`sampled_permeability`.
+    """
     ax, levels = axis_index(axis), _check_levels(levels)
     if isinstance(blocks, bool) or not isinstance(blocks, (int, np.integer)) or blocks < 2:
         raise InputError(f"blocks must be a whole number >= 2 (the spread needs two), got {blocks!r}")
@@ -365,19 +396,44 @@ def sampled_permeability(image: VoxelImage, axis="x", levels=(1, 2, 3), blocks: 
                            "use smaller blocks (--block) or refine the whole image")
     phi_max = max(float(np.mean(image.pore[o[0]:o[0] + side, o[1]:o[1] + side, o[2]:o[2] + side])) for o, _ in chosen)
     _check_block_memory(side, phi_max, levels[-1], ax, opts)
-    k_native, native_res = given if given is not None else (None, None)
+    return SampledPlan(ax, levels, side, tuple(chosen), given)
+
+
+def run_sampled(image: VoxelImage, plan: SampledPlan, opts: StokesOptions, store=None,
+                t0: float | None = None) -> SampledExtrapolation:
+    """Solve (or take from ``store``) the native k and every block level of ``plan``, then pool.
+
+    ``store`` (:class:`porefsi.stokes.sampled_resume.ResumeFile` or None) hands back the solves it
+    holds and records each new one as soon as it is done, so an interrupted run loses at most the
+    solve in progress.
+    """
+    t0 = time.perf_counter() if t0 is None else t0
+    ax, levels, side = plan.ax, plan.levels, plan.side
+    k_native, native_res = plan.given if plan.given is not None else (None, None)
     if k_native is None:
         native_res = voxel_permeability(image, ax, opts)
+        if store is not None:
+            store.put_native(native_res)
         k_native = native_res.k_mD
     rows, cpu = [], []
-    for o, _phi in chosen:
+    for o, _phi in plan.chosen:
         sub = VoxelImage(np.ascontiguousarray(image.phases[o[0]:o[0] + side, o[1]:o[1] + side, o[2]:o[2] + side]),
                          image.voxel_size)
-        c0 = time.process_time()
-        rows.append([voxel_permeability(sub, ax, opts, refine=f).k_mD for f in levels])
-        cpu.append(time.process_time() - c0)
-    factor, se, gci, pooled, blk = pool_blocks([o for o, _ in chosen], side, rows, levels, cpu,
-                                               [phi for _, phi in chosen])
+        row, c_block = [], 0.0
+        for f in levels:
+            hit = store.block(o, f) if store is not None else None
+            if hit is None:
+                c0 = time.process_time()
+                r = voxel_permeability(sub, ax, opts, refine=f)
+                hit = (r.k_mD, time.process_time() - c0)
+                if store is not None:
+                    store.put_block(o, f, r.k_mD, hit[1], r.iterations)
+            row.append(hit[0])
+            c_block += hit[1]
+        rows.append(row)
+        cpu.append(c_block)
+    factor, se, gci, pooled, blk = pool_blocks([o for o, _ in plan.chosen], side, rows, levels, cpu,
+                                               [phi for _, phi in plan.chosen])
     unc = math.hypot(2 * se, gci)
     return SampledExtrapolation(
         k_m2=factor * k_native * MILLIDARCY, k_mD=factor * k_native, uncertainty_mD=unc * k_native,
