@@ -173,6 +173,7 @@ def _network_and_details(args: argparse.Namespace) -> tuple[Network, dict]:
 
 def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
     from porefsi.image.ops import percolating_cluster
+    from porefsi.network.cluster import percolating_pores
     from porefsi.network.extract import _extract, check_memory
 
     t0 = time.perf_counter()
@@ -184,15 +185,15 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
             f"image {source or _SAMPLE} has no pore voxels (all solid); porefsi reads 1 as pore: "
             "check --invert, --threshold or --pore-value"
         )
-    # before the cluster filter (5 bytes/voxel) and the extraction (about 7): refuse what cannot fit
+    # before the cluster filter (about 3 bytes/voxel) and the extraction (about 7): refuse what cannot fit
     check_memory(image.shape, int(round(porosity * image.phases.size)))
     removed = 0.0
     shape = list(image.shape)
     work = image
     if not keep_isolated and porosity < 1.0:
-        perc = percolating_cluster(image, axis)
-        removed, work = float(perc.removed_fraction), perc.image
-        del perc
+        work, removed = percolating_pores(image, axis)  # the voxels of percolating_cluster, no cluster labels
+        if removed == 1.0:
+            percolating_cluster(image, axis)  # raises the NetworkError that counts the clusters
     del image
     connected_porosity, voxel_size = work.porosity, work.voxel_size
     holder = [work]

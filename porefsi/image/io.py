@@ -441,7 +441,10 @@ def read_image(path, *, voxel_size: float | None = None, raw: RawLayout | None =
             "(CLI --voxel-size M, e.g. 5.345e-6)"
         )
     check_voxel_size(vs, "voxel_size (--voxel-size)" if voxel_size is not None else f"the voxel size stored in {p}")
-    return VoxelImage(segment(arr, **segmentation), vs, np.zeros(3) if origin is None else origin)
+    phases = segment(arr, **segmentation)  # a new array (never a view of arr)
+    del arr
+    phases.setflags(write=False)  # so VoxelImage keeps it without a copy (1 byte per voxel saved)
+    return VoxelImage(phases, vs, np.zeros(3) if origin is None else origin)
 
 
 def _image_path(path) -> tuple[Path, str]:
