@@ -8,7 +8,10 @@ Images (120^3 each; none is read by the tests):
   pore above its 78th percentile, 8 um voxels (item 4's blob medium);
 - ``sample``: the built-in 120^3 Berea sample;
 - ``spheres``: ``porefsi.image.synthetic.sphere_lattice``, 8^3 spheres (radii uniform in 4-7 voxels,
-  seed 2026) on a 15-voxel lattice joined by throats of radius 1.5-3, 114^3 voxels of 5 um.
+  seed 2026) on a 15-voxel lattice joined by throats of radius 1.5-3, 114^3 voxels of 5 um;
+- ``spheres_uncut``: its central 90^3 voxels (12:102 along every axis): the 6^3 inner spheres, each
+  whole (no face cuts a sphere, only throats), to test whether the faces' cut spheres are why no
+  mesh converges on ``spheres`` (docs/stability.md (e)).
 
 The summary (``target`` per image) gives the recipe's error against uniform 4's and its CPU against
 uniform 6's, with uniform 6 on the default solver (LU) and on the recipe's solver rule (``auto``).
@@ -138,13 +141,15 @@ def image_npz(name: str, work: Path, berea: Path | None) -> Path:
     elif name == "blobs":
         f = ndimage.gaussian_filter(np.random.default_rng(2026).standard_normal((120, 120, 120)), 4, mode="wrap")
         img, vs = (f > np.percentile(f, 78)).astype(np.uint8), 8e-6
-    elif name == "spheres":  # porefsi.image.synthetic: 8^3 spheres of random radii 4-7 joined by throats 1.5-3
+    elif name in ("spheres", "spheres_uncut"):  # porefsi.image.synthetic: 8^3 spheres of radii 4-7, throats 1.5-3
         from porefsi.image.synthetic import sphere_lattice
 
         rng = np.random.default_rng(2026)
         lat = sphere_lattice((8, 8, 8), spacing=15, pore_radius=rng.uniform(4.0, 7.0, (8, 8, 8)),
                              throat_radius=rng.uniform(1.5, 3.0, 3 * 7 * 8 * 8), voxel_size=5e-6, margin=4)
         img, vs = lat.image.phases.astype(np.uint8), float(lat.image.voxel_size)
+        if name == "spheres_uncut":  # the inner 6^3 spheres whole (centres 19-94, radius <= 7): faces cut throats only
+            img = img[12:102, 12:102, 12:102]
     elif name == "sample":
         s = load_sample()
         img, vs = s.phases.astype(np.uint8), float(s.voxel_size)
