@@ -84,6 +84,7 @@ RUNS = {
     "graded_3_12_auto_newton1e-6": {**RECIPE, "linear_solver": "auto", "_newton_rtol": 1e-6},
     # and AMG's near-null space reduced to the three translations ("_amg_rotations": False sets
     # AMGSolverFactory's default rotations = True to False, in this process)
+    "graded_3_12_lig1_auto_transl": {**RECIPE, "ligaments": 1.0, "linear_solver": "auto", "_amg_rotations": False},
     "graded_3_12_lig1_auto_newton1e-6_transl": {**RECIPE, "ligaments": 1.0, "linear_solver": "auto",
                                                 "_newton_rtol": 1e-6, "_amg_rotations": False},
 }
