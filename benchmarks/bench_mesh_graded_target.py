@@ -82,8 +82,8 @@ RUNS = {
     "graded_3_12_lig1_auto_newton1e-6": {**RECIPE, "ligaments": 1.0, "linear_solver": "auto", "_newton_rtol": 1e-6},
     "graded_3_12_lig1_auto_newton1e-5": {**RECIPE, "ligaments": 1.0, "linear_solver": "auto", "_newton_rtol": 1e-5},
     "graded_3_12_auto_newton1e-6": {**RECIPE, "linear_solver": "auto", "_newton_rtol": 1e-6},
-    # and AMG's near-null space reduced to the three translations ("_amg_rotations": False sets
-    # AMGSolverFactory's default rotations = True to False, in this process)
+    # and AMG's near-null space reduced to the three translations ("_amg_rotations": False sets every
+    # SolidModel's amg_rotations to False for the run, in this process)
     "graded_3_12_lig1_auto_transl": {**RECIPE, "ligaments": 1.0, "linear_solver": "auto", "_amg_rotations": False},
     "graded_3_12_lig1_auto_newton1e-6_transl": {**RECIPE, "ligaments": 1.0, "linear_solver": "auto",
                                                 "_newton_rtol": 1e-6, "_amg_rotations": False},
@@ -103,8 +103,15 @@ def _rule(spec: dict):
 
     saved = linsolve.USE_HINTS, solid_step.ITERATIVE, linsolve.AdaptiveSolverFactory._hinted_choice
     newton = solid_step.StaticStepper.__init__.__defaults__
-    amg_kw = dict(linsolve.AMGSolverFactory.__init__.__kwdefaults__)
-    linsolve.AMGSolverFactory.__init__.__kwdefaults__["rotations"] = bool(spec.get("_amg_rotations", True))
+    from porefsi.solid.model import SolidModel
+
+    model_init = SolidModel.__init__
+    if "_amg_rotations" in spec:  # every model of the run gets amg_rotations (its AMG factory's near-null space)
+        def init(self, *a, **k):
+            model_init(self, *a, **k)
+            self.amg_rotations = bool(spec["_amg_rotations"])
+
+        SolidModel.__init__ = init
     if spec.get("_before"):
         linsolve.USE_HINTS, solid_step.ITERATIVE = False, ("amg", "jacobi")
     if "_newton_rtol" in spec:
@@ -122,7 +129,7 @@ def _rule(spec: dict):
     finally:
         linsolve.USE_HINTS, solid_step.ITERATIVE, linsolve.AdaptiveSolverFactory._hinted_choice = saved
         solid_step.StaticStepper.__init__.__defaults__ = newton
-        linsolve.AMGSolverFactory.__init__.__kwdefaults__.update(amg_kw)
+        SolidModel.__init__ = model_init
 
 
 #: The hinted solver choices of the current run (:func:`_rule`).
