@@ -71,6 +71,11 @@ class SolidModel:
         (:class:`~porefsi.solid.linsolve.SolutionSpace`; default 0: none); set it before the first
         solve. Not part of a checkpoint: with it a resumed run agrees with the uninterrupted one to
         the CG tolerance, not bit for bit.
+    amg_rotations : bool
+        Near-null space of the AMG hierarchy: the six rigid-body modes (True, default) or the three
+        translations (False: a hierarchy about half as costly to build and a V-cycle ~30 % cheaper,
+        for ~25 % more CG iterations on the 120³ rocks' graded meshes, but ~10x more on a slender,
+        bending-dominated body; docs/solid.md section 5); set it before the first solve.
 
     Notes
     -----
@@ -89,6 +94,7 @@ class SolidModel:
             raise InputError(f"linear_solver must be 'auto', 'amg', 'jacobi' or 'direct', got {linear_solver!r}")
         self.linear_solver = linear_solver
         self.recycle = 0
+        self.amg_rotations = True
         self.horizon_steps = 0
         if backend not in ("auto", "numba", "skfem"):
             raise InputError(f"backend must be 'auto', 'numba' or 'skfem', got {backend!r}")
@@ -281,7 +287,7 @@ class SolidModel:
     def solver_factory(self) -> AMGSolverFactory:
         """The shared AMG factory (created on first use)."""
         if self._solver_factory is None:
-            self._solver_factory = AMGSolverFactory(self.dof_points, self.free)
+            self._solver_factory = AMGSolverFactory(self.dof_points, self.free, rotations=bool(self.amg_rotations))
             self._solver_factory.recycle = self.recycle
         return self._solver_factory
 
