@@ -205,6 +205,14 @@ def test_resume_refuses_another_case_or_no_checkpoint(finished, tmp_path):
         run_case(_small(), tmp_path / "empty", resume=True, progress=False)
 
 
+def test_case_newton_rtol_reaches_the_run_stepper():
+    """``solid.newton_rtol`` of a case is the tolerance of the coupled run's static stepper."""
+    run = CoupledRun(build_problem(_small(solid={"coarsen": 10, "newton_rtol": 3e-5})))
+    assert run.solid.rtol == 3e-5
+    with pytest.raises(ConfigError, match="newton_rtol"):
+        _small(solid={"newton_rtol": 0.5})
+
+
 def test_no_pressure_no_strain_no_motion():
     run = CoupledRun(build_problem(_small(drainage={"t_end": 2.0})))
     itf = run.interface

@@ -11,7 +11,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from porefsi.coupling import ExtractionCache, Relaxation, StaticStepper, TractionInterface, transfer_loads
+from porefsi.coupling import (
+    CoupledOptions,
+    ExtractionCache,
+    Relaxation,
+    StaticStepper,
+    TractionInterface,
+    make_solid_stepper,
+    transfer_loads,
+)
+from porefsi.coupling.solid_step import NEWTON_RTOL
 from porefsi.solid import Fixed, SolidModel, box_mesh, make_material
 
 
@@ -78,7 +87,7 @@ def test_static_stepper_reaches_equilibrium_under_the_end_of_step_load():
     F = np.zeros((model.mesh.n_nodes, 3))
     top = model.mesh.points[:, 2] > 0.99e-4
     F[top, 2] = -1e-3  # 1 mN down on each top node
-    stepper = StaticStepper(model)
+    stepper = StaticStepper(model, rtol=1e-8)
     assert stepper.load_times(0.0, 0.5) == (0.5,)
     u0 = np.zeros(model.n_dofs)
     u1, v1 = stepper.step(u0, u0, 0.0, 0.5, {0.0: np.zeros_like(F), 0.5: F})
@@ -87,6 +96,25 @@ def test_static_stepper_reaches_equilibrium_under_the_end_of_step_load():
     assert np.linalg.norm(r) <= 1e-8 * np.linalg.norm(loaded.external_force(0.5))
     assert model.expand(u1, 0.5)[top, 2].max() < 0
     np.testing.assert_array_equal(v1, (u1 - u0) / 0.5)
+
+
+def test_newton_rtol_bounds_the_static_residual_and_reaches_the_stepper():
+    """``newton_rtol`` is the static stepper's stopping rule: the relative residual of a step is below
+    it, and a loose tolerance stops earlier (a larger residual) than a tight one."""
+    model = _model()
+    F = np.zeros((model.mesh.n_nodes, 3))
+    F[model.mesh.points[:, 2] > 0.99e-4, 2] = -2e-2  # strains ~1e-3: the nonlinearity needs iterations
+    loaded = model.with_nodal_forces(F)
+    res = {}
+    for rtol in (1e-3, 1e-11):
+        stepper = make_solid_stepper(model, "static", newton_rtol=rtol)
+        assert isinstance(stepper, StaticStepper) and stepper.rtol == rtol
+        u1, _ = stepper.step(np.zeros(model.n_dofs), np.zeros(model.n_dofs), 0.0, 1.0, {1.0: F})
+        r = loaded.internal_force(u1, 1.0) - loaded.external_force(1.0)
+        res[rtol] = np.linalg.norm(r) / np.linalg.norm(loaded.external_force(1.0))
+        assert res[rtol] <= rtol
+    assert res[1e-3] > 100 * res[1e-11]
+    assert StaticStepper(model).rtol == NEWTON_RTOL == CoupledOptions().solid.newton_rtol
 
 
 def test_static_stepper_checkpoint_rebuilds_the_same_factorisation():

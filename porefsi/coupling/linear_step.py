@@ -48,7 +48,7 @@ from porefsi.integrators.tdg import ALPHA
 from porefsi.solid.model import SMALL_DOFS, SolidModel
 
 __all__ = ["RESPONSES", "LinearResponse", "LinearStepper", "linear_response", "clear_response_cache", "make_stepper",
-           "max_green_lagrange"]
+           "max_green_lagrange", "with_response"]
 
 #: ``solid.response`` choices.
 RESPONSES = ("nonlinear", "linear", "auto")
@@ -424,9 +424,18 @@ def make_stepper(model: SolidModel, integrator: str = "static", iterations: int 
     ``"linear"`` / ``"auto"`` (:attr:`SolidOptions.response`) a :class:`LinearStepper` around it
     (unit responses of ``interface``'s pores, tolerance ``response_tol``, ``n_steps`` ahead).
     """
+    return with_response(make_solid_stepper(model, integrator, iterations, load_rule), response, response_tol,
+                         interface, n_steps)
+
+
+def with_response(inner: StaticStepper | TDGStepper, response: str = "nonlinear", response_tol: float = 1e-3,
+                  interface=None, n_steps: int = 0) -> StaticStepper | TDGStepper | LinearStepper:
+    """``inner`` itself for ``response = "nonlinear"``, else a :class:`LinearStepper` around it.
+
+    ``response``, ``response_tol``, ``interface`` and ``n_steps`` as for :func:`make_stepper`.
+    """
     if response not in RESPONSES:
         raise InputError(f"response must be one of {RESPONSES}, got {response!r}")
-    inner = make_solid_stepper(model, integrator, iterations, load_rule)
     if response == "nonlinear":
         return inner
     return LinearStepper(inner, response, response_tol, interface=interface, n_steps=n_steps)

@@ -32,11 +32,12 @@ from porefsi.coupling import checkpoint as _ckpt
 from porefsi.coupling._loop_support import invaded_outside
 from porefsi.coupling.fluid_step import advance_fluid, carry_state, fluid_times, pore_pressure, transfer_loads
 from porefsi.coupling.interface import Interface
-from porefsi.coupling.linear_step import make_stepper
+from porefsi.coupling.linear_step import with_response
 from porefsi.coupling.network_step import ExtractionCache, NetworkState, make_updater
 from porefsi.coupling.problem import CoarseLoadWarning, CoupledProblem
 from porefsi.coupling.records import TIMESERIES_COLUMNS, TIMESERIES_DOCS, ExchangeRecord, Iterate, IterationStats
 from porefsi.coupling.relaxation import Relaxation
+from porefsi.coupling.solid_step import make_solid_stepper
 from porefsi.coupling.timing import StageClock
 from porefsi.coupling.update import mean_size_change
 from porefsi.errors import ConvergenceError
@@ -156,8 +157,10 @@ class CoupledRun:
         self.u = np.zeros(self.model.n_dofs)
         self.v = np.zeros(self.model.n_dofs)
         cc = opts.coupling
-        self.solid = make_stepper(self.model, cc.integrator, cc.tdg_iterations, cc.tdg_load_rule, opts.solid.response,
-                                  opts.solid.response_tol, problem.interface, self.n_steps)
+        inner = make_solid_stepper(self.model, cc.integrator, cc.tdg_iterations, cc.tdg_load_rule,
+                                   opts.solid.newton_rtol)
+        self.solid = with_response(inner, opts.solid.response, opts.solid.response_tol, problem.interface,
+                                   self.n_steps)
         self.extractions = ExtractionCache(reuse_extractions)
         self.extractions.seed(problem.image.phases, problem.extraction)
         self.seconds = dict.fromkeys((*STEP_STAGES, "stress", "permeability"), 0.0)

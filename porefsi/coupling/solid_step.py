@@ -25,6 +25,10 @@ from porefsi.solid.static import solve_static
 
 __all__ = ["StaticStepper", "TDGStepper", "make_solid_stepper"]
 
+#: Default Newton tolerance of the static stepper (residual / load). 1e-6 instead of 1e-8 since
+#: 2026-12-03: on three rocks the 10-s displacement moved by <= 1.8e-7 relative while the mesh's own
+#: error is 0.1-0.35 (docs/solid.md §5), and the graded recipe's solves fell from 17 to 8.
+NEWTON_RTOL = 1e-6
 #: Loosest relative tolerance of an iterative linear solve inside the static modified Newton.
 LINEAR_RTOL_MAX = 0.1
 #: The model's linear solvers that are iterative (the static stepper warm-starts them).
@@ -52,13 +56,13 @@ class StaticStepper(_Stepper):
     Parameters
     ----------
     model : SolidModel
-    rtol : float, default 1e-8
+    rtol : float, default :data:`NEWTON_RTOL` (1e-6)
         Newton tolerance on the residual relative to the load.
     max_iter : int, default 30
         Modified-Newton iterations before the tangent is refreshed.
     """
 
-    def __init__(self, model: SolidModel, rtol: float = 1e-8, max_iter: int = 30):
+    def __init__(self, model: SolidModel, rtol: float = NEWTON_RTOL, max_iter: int = 30):
         super().__init__(model)
         self.rtol, self.max_iter = rtol, max_iter
         self._lu = None
@@ -273,12 +277,13 @@ class TDGStepper(_Stepper):
 
 
 def make_solid_stepper(model: SolidModel, integrator: str = "static", iterations: int = 2,
-                       load_rule: str = "right") -> StaticStepper | TDGStepper:
+                       load_rule: str = "right", newton_rtol: float = NEWTON_RTOL) -> StaticStepper | TDGStepper:
     """The stepper of ``integrator`` (``"static"`` or ``"tdg"``: :attr:`CouplingOptions.integrator`).
 
-    The linear-response stepper around it (``solid.response``) is made by
-    :func:`porefsi.coupling.linear_step.make_stepper`.
+    ``newton_rtol`` is the static stepper's Newton tolerance (:attr:`SolidOptions.newton_rtol`;
+    the TDG stepper makes a fixed number of passes instead). The linear-response stepper around
+    it (``solid.response``) is made by :func:`porefsi.coupling.linear_step.with_response`.
     """
     if integrator == "static":
-        return StaticStepper(model)
+        return StaticStepper(model, rtol=newton_rtol)
     return TDGStepper(model, iterations, load_rule)
