@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from porefsi._numba import jit, prange
+from porefsi.network._mb_prefetch import _prefetch
 
 
 # --------------------------------------------------------------------------------------------
@@ -235,9 +236,15 @@ def _scan_ball(dt2, balls, sqrt_tab, labels, fam, k, rules):
     rk, lim, cl = sqrt_tab[d2], d2 - 1, rules[2] * d2
     h = _isqrt(lim)
     best = balls.size
+    lf = labels.reshape(-1)
     for a in range(max(i - h, 0), min(i + h, nx - 1) + 1):
         da = (a - i) * (a - i)
         hb = _isqrt(lim - da)
+        if a < min(i + h, nx - 1):  # the next plane's rows, ahead of their use
+            dn = (a + 1 - i) * (a + 1 - i)
+            hn = _isqrt(lim - dn)
+            for b in range(max(j - hn, 0), min(j + hn, ny - 1) + 1):
+                _prefetch(lf, ((a + 1) * ny + b) * nz + l)
         for b in range(max(j - hb, 0), min(j + hb, ny - 1) + 1):
             dab = da + (b - j) * (b - j)
             w = _isqrt(lim - dab)

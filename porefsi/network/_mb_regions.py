@@ -12,6 +12,10 @@ from numba.typed import Dict
 
 from porefsi._numba import jit
 from porefsi.network._mb_edt import _d2
+from porefsi.network._mb_prefetch import _prefetch
+
+#: Queue entries between a voxel's prefetch and its use in the label flood.
+PREFETCH_AHEAD = 8
 
 
 @jit
@@ -86,7 +90,13 @@ def _flood_level(df, lf, dims, segment, queue, level):
     Returns the number of voxels labelled.
     """
     tail = 0
+    sx, sy = np.int64(dims[1]) * dims[2], np.int64(dims[2])
     for s in range(segment.size):
+        if s + PREFETCH_AHEAD < segment.size:
+            f = np.int64(segment[s + PREFETCH_AHEAD])
+            _prefetch(lf, f)
+            _prefetch(lf, f - sx)
+            _prefetch(lf, f + sx)
         n = np.int64(segment[s])
         if lf[n] != -1:
             continue
@@ -103,6 +113,14 @@ def _flood_level(df, lf, dims, segment, queue, level):
         lf[n] = -2 - lf[n]
     head = 0
     while head < tail:
+        if head + PREFETCH_AHEAD < tail:  # the far neighbours of a voxel a few steps ahead
+            f = np.int64(queue[head + PREFETCH_AHEAD])
+            _prefetch(lf, f - sx)
+            _prefetch(lf, f + sx)
+            _prefetch(lf, f - sy)
+            _prefetch(lf, f + sy)
+            _prefetch(df, f - sx)
+            _prefetch(df, f + sx)
         n = np.int64(queue[head])
         head += 1
         ijk = _coords(n, dims)
