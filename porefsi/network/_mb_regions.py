@@ -10,7 +10,7 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from porefsi._numba import jit
+from porefsi._numba import jit, prange
 from porefsi.network._mb_edt import _d2
 from porefsi.network._mb_prefetch import _prefetch
 
@@ -196,7 +196,9 @@ def _interfaces(labels, dt2, n_pores, walls=None):
     face between voxels ``i`` and ``i + 1`` sits at ``i + 0.5``). Throats are numbered in the
     order their first face is met in a C-order scan (x, then y, then z faces per voxel).
     ``walls`` (int64 (3,), optional): axes whose box faces count as solid for ``w``
-    (:func:`porefsi.network._mb_edt._d2`); none by default.
+    (:func:`porefsi.network._mb_edt._d2`); none by default. The faces are found by slabs on
+    numba's threads (:func:`_interface_faces`, in scan order, so the result does not depend on
+    their number) and aggregated in that order.
 
     Returns
     -------
@@ -207,40 +209,78 @@ def _interfaces(labels, dt2, n_pores, walls=None):
     """
     nx, ny, nz = labels.shape
     box = np.zeros(3, np.int64) if walls is None else walls
+    faces = _interface_faces(labels)
     table = Dict.empty(key_type=types.int64, value_type=types.int64)
     conns, w = np.empty((256, 2), np.int64), np.empty(256, np.int64)
     point, nf = np.empty((256, 3), np.float64), np.empty(256, np.int64)
     nt = 0
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                la = labels[i, j, k]
-                if la < 0:
-                    continue
-                for ax in range(3):
-                    a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
-                    if a >= nx or b >= ny or c >= nz:
-                        continue
-                    lb = labels[a, b, c]
-                    if lb < 0 or lb == la:
-                        continue
-                    key = np.int64(min(la, lb)) * n_pores + max(la, lb)
-                    if key in table:
-                        t = table[key]
-                    else:
-                        if nt == conns.shape[0]:
-                            conns, w, point, nf = _grown(conns, w, point, nf, nt)
-                        t = np.int64(nt)
-                        nt += 1
-                        table[key] = t
-                        conns[t, 0], conns[t, 1] = min(la, lb), max(la, lb)
-                        w[t], nf[t] = -1, 0
-                    nf[t] += 1
-                    val = min(_d2(dt2, i, j, k, box), _d2(dt2, a, b, c, box))
-                    if val > w[t]:
-                        w[t] = val
-                        point[t, 0], point[t, 1], point[t, 2] = 0.5 * (i + a), 0.5 * (j + b), 0.5 * (k + c)
+    for f in range(faces.size):
+        code = faces[f]
+        ax = code % 3
+        q = code // 3 // nz
+        i = q // ny
+        j, k = q - i * ny, code // 3 - q * nz
+        a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
+        la, lb = labels[i, j, k], labels[a, b, c]
+        key = np.int64(min(la, lb)) * n_pores + max(la, lb)
+        if key in table:
+            t = table[key]
+        else:
+            if nt == conns.shape[0]:
+                conns, w, point, nf = _grown(conns, w, point, nf, nt)
+            t = np.int64(nt)
+            nt += 1
+            table[key] = t
+            conns[t, 0], conns[t, 1] = min(la, lb), max(la, lb)
+            w[t], nf[t] = -1, 0
+        nf[t] += 1
+        val = min(_d2(dt2, i, j, k, box), _d2(dt2, a, b, c, box))
+        if val > w[t]:
+            w[t] = val
+            point[t, 0], point[t, 1], point[t, 2] = 0.5 * (i + a), 0.5 * (j + b), 0.5 * (k + c)
     return conns[:nt].copy(), w[:nt].copy(), point[:nt].copy(), nf[:nt].copy()
+
+
+@jit(parallel=True)
+def _interface_faces(labels):
+    """Faces shared by two different pore labels, as ``3 * flat_index + axis`` of their lower voxel, in C order.
+
+    Two passes over slabs along the first axis on numba's threads: count, then write each slab's
+    faces at its offset, so the list is the sequential scan's (x, then y, then z face per voxel).
+    """
+    nx = labels.shape[0]
+    count = np.zeros(nx + 1, np.int64)
+    for i in prange(nx):
+        count[i + 1] = _slab_faces(labels, i, count[:0], 0)
+    for i in range(nx):
+        count[i + 1] += count[i]
+    out = np.empty(count[nx], np.int64)
+    for i in prange(nx):
+        _slab_faces(labels, i, out, count[i])
+    return out
+
+
+@jit
+def _slab_faces(labels, i, out, start):
+    """Interface faces of slab ``i``: counted, and written to ``out[start:]`` unless ``out`` is empty."""
+    nx, ny, nz = labels.shape
+    t = start
+    for j in range(ny):
+        for k in range(nz):
+            la = labels[i, j, k]
+            if la < 0:
+                continue
+            for ax in range(3):
+                a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
+                if a >= nx or b >= ny or c >= nz:
+                    continue
+                lb = labels[a, b, c]
+                if lb < 0 or lb == la:
+                    continue
+                if out.size:
+                    out[t] = ((np.int64(i) * ny + j) * nz + k) * 3 + ax
+                t += 1
+    return t - start
 
 
 @jit
