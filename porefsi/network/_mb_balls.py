@@ -47,28 +47,45 @@ def _maximal_balls(dt2, min_dt2, offsets, off_class, reach2, scratch, like):
         Linear (C-order) indices of the maximal-ball centres.
     n_candidates : int
     """
-    nx, ny, nz = dt2.shape
     slab_top, slab_cand = _mark_maximal(dt2, min_dt2, offsets, off_class, reach2, scratch)
     top, ncand = slab_top.max(), slab_cand.sum()
-    count = np.zeros(top + 2, np.int64)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if scratch[i, j, k] == -2:
-                    count[top - dt2[i, j, k]] += 1
-    start = np.zeros(top + 2, np.int64)
-    for t in range(1, top + 2):
-        start[t] = start[t - 1] + count[t - 1]
-    order = np.empty(start[top + 1], like.dtype)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if scratch[i, j, k] == -2:
-                    scratch[i, j, k] = -1
-                    key = top - dt2[i, j, k]
-                    order[start[key]] = (i * ny + j) * nz + k
-                    start[key] += 1
-    return order, ncand
+    return _flagged_by_level(dt2, scratch, top, like), ncand
+
+
+@jit(parallel=True)
+def _flagged_by_level(dt2, scratch, top, like):
+    """Flat indices of the voxels with ``scratch == -2`` (reset to -1), by ``dt2`` descending then C order.
+
+    A counting sort over blocks of slabs on numba's threads: each block counts its voxels per
+    level, the blocks' offsets per level follow in block order, then each block writes its voxels
+    in C order, so the list does not depend on the number of threads.
+    """
+    nx, ny, nz = dt2.shape
+    nb = min(nx, 64)
+    count = np.zeros((nb, top + 2), np.int64)
+    for blk in prange(nb):
+        for i in range(blk * nx // nb, (blk + 1) * nx // nb):
+            for j in range(ny):
+                for k in range(nz):
+                    if scratch[i, j, k] == -2:
+                        count[blk, top - dt2[i, j, k]] += 1
+    run = 0
+    for key in range(top + 2):
+        for blk in range(nb):
+            c = count[blk, key]
+            count[blk, key] = run
+            run += c
+    order = np.empty(run, like.dtype)
+    for blk in prange(nb):
+        for i in range(blk * nx // nb, (blk + 1) * nx // nb):
+            for j in range(ny):
+                for k in range(nz):
+                    if scratch[i, j, k] == -2:
+                        scratch[i, j, k] = -1
+                        key = top - dt2[i, j, k]
+                        order[count[blk, key]] = (i * ny + j) * nz + k
+                        count[blk, key] += 1
+    return order
 
 
 @jit(parallel=True)
@@ -352,7 +369,23 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels, core):
         else:
             master[k] = k
             _claim_ball(dt2, labels, p, k)
-    for n in range(lf.size):
-        if lf[n] <= -2:
-            lf[n] = -2 - lf[n]
+    _unflag(labels)
     return master, n_kept
+
+
+@jit(parallel=True)
+def _unflag(labels):
+    """Core flags ``-2 - owner`` back to ``owner``, slabs on numba's threads."""
+    nx, ny, nz = labels.shape
+    for i in prange(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if labels[i, j, k] <= -2:
+                    labels[i, j, k] = -2 - labels[i, j, k]
+
+
+@jit(parallel=True)
+def _fill(a, value):
+    """``a[...] = value`` by slabs on numba's threads (the pages are first touched in parallel)."""
+    for i in prange(a.shape[0]):
+        a[i] = value

@@ -60,25 +60,43 @@ def _neighbour(n, t, ijk, dims):
     return -1 if k == nz - 1 else n + 1
 
 
-@jit
+@jit(parallel=True)
 def _sort_by_level(df, lf, buf):
-    """Unlabelled pore voxels into ``buf`` by distance-map level, highest first; (segment starts, top)."""
-    top = 0
-    for n in range(df.size):
-        if lf[n] < 0 and df[n] > top:
-            top = df[n]
-    count = np.zeros(top + 2, np.int64)
-    for n in range(df.size):
-        if lf[n] < 0 and df[n] > 0:
-            count[top - df[n]] += 1
+    """Unlabelled pore voxels into ``buf`` by distance-map level, highest first; (segment starts, top).
+
+    Within a level in C order. A counting sort over blocks of the flat arrays on numba's threads
+    (block counts per level, offsets in block order, each block writes its voxels in order), so
+    ``buf`` does not depend on the number of threads.
+    """
+    size = df.size
+    nb = 64
+    tops = np.zeros(nb, np.int64)
+    for blk in prange(nb):
+        t = 0
+        for n in range(blk * size // nb, (blk + 1) * size // nb):
+            if lf[n] < 0 and df[n] > t:
+                t = df[n]
+        tops[blk] = t
+    top = tops.max()
+    count = np.zeros((nb, top + 2), np.int64)
+    for blk in prange(nb):
+        for n in range(blk * size // nb, (blk + 1) * size // nb):
+            if lf[n] < 0 and df[n] > 0:
+                count[blk, top - df[n]] += 1
     start = np.zeros(top + 2, np.int64)
-    for t in range(1, top + 2):
-        start[t] = start[t - 1] + count[t - 1]
-    fill = start.copy()
-    for n in range(df.size):
-        if lf[n] < 0 and df[n] > 0:
-            buf[fill[top - df[n]]] = n
-            fill[top - df[n]] += 1
+    run = 0
+    for key in range(top + 2):
+        start[key] = run
+        for blk in range(nb):
+            c = count[blk, key]
+            count[blk, key] = run
+            run += c
+    for blk in prange(nb):
+        for n in range(blk * size // nb, (blk + 1) * size // nb):
+            if lf[n] < 0 and df[n] > 0:
+                key = top - df[n]
+                buf[count[blk, key]] = n
+                count[blk, key] += 1
     return start, top
 
 
