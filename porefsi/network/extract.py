@@ -184,7 +184,7 @@ def check_memory(shape, n_pore: int) -> None:
     """Raise a one-line :class:`InputError` if :func:`memory_needed` exceeds the available memory.
 
     Also honours the address-space limit (``ulimit -v``). The CLI calls it before filtering the
-    image (whose cluster labelling needs 5 bytes per voxel, less than the extraction).
+    image (whose cluster flood needs about 3 bytes per voxel, less than the extraction).
     """
     need = memory_needed(shape, n_pore)
     avail = available_memory()
