@@ -31,8 +31,8 @@ def test_same_voxels_as_the_labelling(porosity, axis):
 def test_cluster_touching_one_face_only_is_removed():
     a = np.zeros((6, 5, 5), np.uint8)
     a[:, 1, 1] = 1  # percolates along x
-    a[0:3, 3, 3] = 1  # touches xmin only
-    a[3:, 3, 1] = 1  # touches xmax only
+    a[0:5, 3, 3] = 1  # touches xmin only, one layer short of xmax
+    a[1:, 3, 1] = 1  # touches xmax only, one layer short of xmin
     a[2, 1, 3] = 1  # isolated
     out, removed = percolating_pores(VoxelImage(a, 1e-6), "x")
     assert out.phases.sum() == 6 and out.phases[:, 1, 1].all()

@@ -11,7 +11,7 @@ Every kernel takes arrays and scalars only and has a slow pure-Python twin in
 ``(i, j, k)``; the public wrapper adds the half voxel and the origin.
 """
 
-from porefsi.network._mb_balls import _families, _isqrt, _maximal_balls, ball_offsets, ball_reach_table
+from porefsi.network._mb_balls import _families, _fill, _isqrt, _maximal_balls, ball_offsets, ball_reach_table
 from porefsi.network._mb_edt import CAP16, INF, _envelope_line, _pore_solid_faces, _sq_edt
 from porefsi.network._mb_regions import _flood, _interfaces, _pore_stats, _relabel
 
@@ -20,6 +20,7 @@ __all__ = [
     "INF",
     "_envelope_line",
     "_families",
+    "_fill",
     "_flood",
     "_interfaces",
     "_isqrt",

@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from porefsi._numba import jit, prange
+from porefsi.network._mb_prefetch import _prefetch
 
 
 # --------------------------------------------------------------------------------------------
@@ -46,28 +47,45 @@ def _maximal_balls(dt2, min_dt2, offsets, off_class, reach2, scratch, like):
         Linear (C-order) indices of the maximal-ball centres.
     n_candidates : int
     """
-    nx, ny, nz = dt2.shape
     slab_top, slab_cand = _mark_maximal(dt2, min_dt2, offsets, off_class, reach2, scratch)
     top, ncand = slab_top.max(), slab_cand.sum()
-    count = np.zeros(top + 2, np.int64)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if scratch[i, j, k] == -2:
-                    count[top - dt2[i, j, k]] += 1
-    start = np.zeros(top + 2, np.int64)
-    for t in range(1, top + 2):
-        start[t] = start[t - 1] + count[t - 1]
-    order = np.empty(start[top + 1], like.dtype)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if scratch[i, j, k] == -2:
-                    scratch[i, j, k] = -1
-                    key = top - dt2[i, j, k]
-                    order[start[key]] = (i * ny + j) * nz + k
-                    start[key] += 1
-    return order, ncand
+    return _flagged_by_level(dt2, scratch, top, like), ncand
+
+
+@jit(parallel=True)
+def _flagged_by_level(dt2, scratch, top, like):
+    """Flat indices of the voxels with ``scratch == -2`` (reset to -1), by ``dt2`` descending then C order.
+
+    A counting sort over blocks of slabs on numba's threads: each block counts its voxels per
+    level, the blocks' offsets per level follow in block order, then each block writes its voxels
+    in C order, so the list does not depend on the number of threads.
+    """
+    nx, ny, nz = dt2.shape
+    nb = min(nx, 64)
+    count = np.zeros((nb, top + 2), np.int64)
+    for blk in prange(nb):
+        for i in range(blk * nx // nb, (blk + 1) * nx // nb):
+            for j in range(ny):
+                for k in range(nz):
+                    if scratch[i, j, k] == -2:
+                        count[blk, top - dt2[i, j, k]] += 1
+    run = 0
+    for key in range(top + 2):
+        for blk in range(nb):
+            c = count[blk, key]
+            count[blk, key] = run
+            run += c
+    order = np.empty(run, like.dtype)
+    for blk in prange(nb):
+        for i in range(blk * nx // nb, (blk + 1) * nx // nb):
+            for j in range(ny):
+                for k in range(nz):
+                    if scratch[i, j, k] == -2:
+                        scratch[i, j, k] = -1
+                        key = top - dt2[i, j, k]
+                        order[count[blk, key]] = (i * ny + j) * nz + k
+                        count[blk, key] += 1
+    return order
 
 
 @jit(parallel=True)
@@ -220,6 +238,23 @@ def _joins(dt2, balls, sqrt_tab, r, centre, rk, rules):
 
 
 @jit
+def _prefetch_plane(lf, dims, a, ijl, lim):
+    """Prefetch the rows of plane ``a`` of the ball ``|x - ijl|^2 <= lim`` (around its centre column).
+
+    The hierarchy's scans are bound by the latency of these rows (each in its own cache line,
+    planes megabytes apart); fetched one plane ahead, they arrive while the current plane is
+    scanned. A hint: nothing is read into the kernel.
+    """
+    ny, nz = dims[1], dims[2]
+    i, j, l = ijl
+    hn = _isqrt(lim - (a - i) * (a - i))
+    for b in range(max(j - hn, 0), min(j + hn, ny - 1) + 1):
+        row = (np.int64(a) * ny + b) * nz + l
+        _prefetch(lf, row - 8)
+        _prefetch(lf, row + 8)
+
+
+@jit
 def _scan_ball(dt2, balls, sqrt_tab, labels, fam, k, rules):
     """Scan the voxels of ball ``k``: paint the unpainted ones, flag its core, find the ball to adopt.
 
@@ -235,9 +270,13 @@ def _scan_ball(dt2, balls, sqrt_tab, labels, fam, k, rules):
     rk, lim, cl = sqrt_tab[d2], d2 - 1, rules[2] * d2
     h = _isqrt(lim)
     best = balls.size
+    lf = labels.reshape(-1)
+    _prefetch_plane(lf, labels.shape, max(i - h, 0), (i, j, l), lim)
     for a in range(max(i - h, 0), min(i + h, nx - 1) + 1):
         da = (a - i) * (a - i)
         hb = _isqrt(lim - da)
+        if a < min(i + h, nx - 1):
+            _prefetch_plane(lf, labels.shape, a + 1, (i, j, l), lim)
         for b in range(max(j - hb, 0), min(j + hb, ny - 1) + 1):
             dab = da + (b - j) * (b - j)
             w = _isqrt(lim - dab)
@@ -330,7 +369,23 @@ def _families(dt2, balls, sqrt_tab, extent, ratio, labels, core):
         else:
             master[k] = k
             _claim_ball(dt2, labels, p, k)
-    for n in range(lf.size):
-        if lf[n] <= -2:
-            lf[n] = -2 - lf[n]
+    _unflag(labels)
     return master, n_kept
+
+
+@jit(parallel=True)
+def _unflag(labels):
+    """Core flags ``-2 - owner`` back to ``owner``, slabs on numba's threads."""
+    nx, ny, nz = labels.shape
+    for i in prange(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if labels[i, j, k] <= -2:
+                    labels[i, j, k] = -2 - labels[i, j, k]
+
+
+@jit(parallel=True)
+def _fill(a, value):
+    """``a[...] = value`` by slabs on numba's threads (the pages are first touched in parallel)."""
+    for i in prange(a.shape[0]):
+        a[i] = value

@@ -10,8 +10,12 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from porefsi._numba import jit
+from porefsi._numba import jit, prange
 from porefsi.network._mb_edt import _d2
+from porefsi.network._mb_prefetch import _prefetch
+
+#: Queue entries between a voxel's prefetch and its use in the label flood.
+PREFETCH_AHEAD = 8
 
 
 @jit
@@ -56,25 +60,43 @@ def _neighbour(n, t, ijk, dims):
     return -1 if k == nz - 1 else n + 1
 
 
-@jit
+@jit(parallel=True)
 def _sort_by_level(df, lf, buf):
-    """Unlabelled pore voxels into ``buf`` by distance-map level, highest first; (segment starts, top)."""
-    top = 0
-    for n in range(df.size):
-        if lf[n] < 0 and df[n] > top:
-            top = df[n]
-    count = np.zeros(top + 2, np.int64)
-    for n in range(df.size):
-        if lf[n] < 0 and df[n] > 0:
-            count[top - df[n]] += 1
+    """Unlabelled pore voxels into ``buf`` by distance-map level, highest first; (segment starts, top).
+
+    Within a level in C order. A counting sort over blocks of the flat arrays on numba's threads
+    (block counts per level, offsets in block order, each block writes its voxels in order), so
+    ``buf`` does not depend on the number of threads.
+    """
+    size = df.size
+    nb = 64
+    tops = np.zeros(nb, np.int64)
+    for blk in prange(nb):
+        t = 0
+        for n in range(blk * size // nb, (blk + 1) * size // nb):
+            if lf[n] < 0 and df[n] > t:
+                t = df[n]
+        tops[blk] = t
+    top = tops.max()
+    count = np.zeros((nb, top + 2), np.int64)
+    for blk in prange(nb):
+        for n in range(blk * size // nb, (blk + 1) * size // nb):
+            if lf[n] < 0 and df[n] > 0:
+                count[blk, top - df[n]] += 1
     start = np.zeros(top + 2, np.int64)
-    for t in range(1, top + 2):
-        start[t] = start[t - 1] + count[t - 1]
-    fill = start.copy()
-    for n in range(df.size):
-        if lf[n] < 0 and df[n] > 0:
-            buf[fill[top - df[n]]] = n
-            fill[top - df[n]] += 1
+    run = 0
+    for key in range(top + 2):
+        start[key] = run
+        for blk in range(nb):
+            c = count[blk, key]
+            count[blk, key] = run
+            run += c
+    for blk in prange(nb):
+        for n in range(blk * size // nb, (blk + 1) * size // nb):
+            if lf[n] < 0 and df[n] > 0:
+                key = top - df[n]
+                buf[count[blk, key]] = n
+                count[blk, key] += 1
     return start, top
 
 
@@ -86,7 +108,13 @@ def _flood_level(df, lf, dims, segment, queue, level):
     Returns the number of voxels labelled.
     """
     tail = 0
+    sx, sy = np.int64(dims[1]) * dims[2], np.int64(dims[2])
     for s in range(segment.size):
+        if s + PREFETCH_AHEAD < segment.size:
+            f = np.int64(segment[s + PREFETCH_AHEAD])
+            _prefetch(lf, f)
+            _prefetch(lf, f - sx)
+            _prefetch(lf, f + sx)
         n = np.int64(segment[s])
         if lf[n] != -1:
             continue
@@ -103,6 +131,14 @@ def _flood_level(df, lf, dims, segment, queue, level):
         lf[n] = -2 - lf[n]
     head = 0
     while head < tail:
+        if head + PREFETCH_AHEAD < tail:  # the far neighbours of a voxel a few steps ahead
+            f = np.int64(queue[head + PREFETCH_AHEAD])
+            _prefetch(lf, f - sx)
+            _prefetch(lf, f + sx)
+            _prefetch(lf, f - sy)
+            _prefetch(lf, f + sy)
+            _prefetch(df, f - sx)
+            _prefetch(df, f + sx)
         n = np.int64(queue[head])
         head += 1
         ijk = _coords(n, dims)
@@ -178,7 +214,9 @@ def _interfaces(labels, dt2, n_pores, walls=None):
     face between voxels ``i`` and ``i + 1`` sits at ``i + 0.5``). Throats are numbered in the
     order their first face is met in a C-order scan (x, then y, then z faces per voxel).
     ``walls`` (int64 (3,), optional): axes whose box faces count as solid for ``w``
-    (:func:`porefsi.network._mb_edt._d2`); none by default.
+    (:func:`porefsi.network._mb_edt._d2`); none by default. The faces are found by slabs on
+    numba's threads (:func:`_interface_faces`, in scan order, so the result does not depend on
+    their number) and aggregated in that order.
 
     Returns
     -------
@@ -189,40 +227,78 @@ def _interfaces(labels, dt2, n_pores, walls=None):
     """
     nx, ny, nz = labels.shape
     box = np.zeros(3, np.int64) if walls is None else walls
+    faces = _interface_faces(labels)
     table = Dict.empty(key_type=types.int64, value_type=types.int64)
     conns, w = np.empty((256, 2), np.int64), np.empty(256, np.int64)
     point, nf = np.empty((256, 3), np.float64), np.empty(256, np.int64)
     nt = 0
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                la = labels[i, j, k]
-                if la < 0:
-                    continue
-                for ax in range(3):
-                    a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
-                    if a >= nx or b >= ny or c >= nz:
-                        continue
-                    lb = labels[a, b, c]
-                    if lb < 0 or lb == la:
-                        continue
-                    key = np.int64(min(la, lb)) * n_pores + max(la, lb)
-                    if key in table:
-                        t = table[key]
-                    else:
-                        if nt == conns.shape[0]:
-                            conns, w, point, nf = _grown(conns, w, point, nf, nt)
-                        t = np.int64(nt)
-                        nt += 1
-                        table[key] = t
-                        conns[t, 0], conns[t, 1] = min(la, lb), max(la, lb)
-                        w[t], nf[t] = -1, 0
-                    nf[t] += 1
-                    val = min(_d2(dt2, i, j, k, box), _d2(dt2, a, b, c, box))
-                    if val > w[t]:
-                        w[t] = val
-                        point[t, 0], point[t, 1], point[t, 2] = 0.5 * (i + a), 0.5 * (j + b), 0.5 * (k + c)
+    for f in range(faces.size):
+        code = faces[f]
+        ax = code % 3
+        q = code // 3 // nz
+        i = q // ny
+        j, k = q - i * ny, code // 3 - q * nz
+        a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
+        la, lb = labels[i, j, k], labels[a, b, c]
+        key = np.int64(min(la, lb)) * n_pores + max(la, lb)
+        if key in table:
+            t = table[key]
+        else:
+            if nt == conns.shape[0]:
+                conns, w, point, nf = _grown(conns, w, point, nf, nt)
+            t = np.int64(nt)
+            nt += 1
+            table[key] = t
+            conns[t, 0], conns[t, 1] = min(la, lb), max(la, lb)
+            w[t], nf[t] = -1, 0
+        nf[t] += 1
+        val = min(_d2(dt2, i, j, k, box), _d2(dt2, a, b, c, box))
+        if val > w[t]:
+            w[t] = val
+            point[t, 0], point[t, 1], point[t, 2] = 0.5 * (i + a), 0.5 * (j + b), 0.5 * (k + c)
     return conns[:nt].copy(), w[:nt].copy(), point[:nt].copy(), nf[:nt].copy()
+
+
+@jit(parallel=True)
+def _interface_faces(labels):
+    """Faces shared by two different pore labels, as ``3 * flat_index + axis`` of their lower voxel, in C order.
+
+    Two passes over slabs along the first axis on numba's threads: count, then write each slab's
+    faces at its offset, so the list is the sequential scan's (x, then y, then z face per voxel).
+    """
+    nx = labels.shape[0]
+    count = np.zeros(nx + 1, np.int64)
+    for i in prange(nx):
+        count[i + 1] = _slab_faces(labels, i, count[:0], 0)
+    for i in range(nx):
+        count[i + 1] += count[i]
+    out = np.empty(count[nx], np.int64)
+    for i in prange(nx):
+        _slab_faces(labels, i, out, count[i])
+    return out
+
+
+@jit
+def _slab_faces(labels, i, out, start):
+    """Interface faces of slab ``i``: counted, and written to ``out[start:]`` unless ``out`` is empty."""
+    nx, ny, nz = labels.shape
+    t = start
+    for j in range(ny):
+        for k in range(nz):
+            la = labels[i, j, k]
+            if la < 0:
+                continue
+            for ax in range(3):
+                a, b, c = i + (ax == 0), j + (ax == 1), k + (ax == 2)
+                if a >= nx or b >= ny or c >= nz:
+                    continue
+                lb = labels[a, b, c]
+                if lb < 0 or lb == la:
+                    continue
+                if out.size:
+                    out[t] = ((np.int64(i) * ny + j) * nz + k) * 3 + ax
+                t += 1
+    return t - start
 
 
 @jit

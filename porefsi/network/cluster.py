@@ -15,6 +15,7 @@ import numpy as np
 from porefsi._numba import jit, prange
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import VoxelImage, axis_index
+from porefsi.network._mb_prefetch import _prefetch
 
 __all__ = ["percolating_pores"]
 
@@ -32,6 +33,12 @@ def _flood_cluster(mark, dims, ax, queue, tail):
     hit = False
     head = 0
     while head < tail:
+        if head + 8 < tail:  # the far neighbours of a voxel a few steps ahead (latency-bound flood)
+            f = np.int64(queue[head + 8])
+            _prefetch(mark, f - sx)
+            _prefetch(mark, f + sx)
+            _prefetch(mark, f - nz)
+            _prefetch(mark, f + nz)
         n = np.int64(queue[head])
         head += 1
         q = n // nz
@@ -94,6 +101,8 @@ def _percolating(mark, dims, ax, queue):
                 tail, hit = _flood_cluster(mark, dims, ax, queue, 1)
                 if hit:
                     for h in range(tail):
+                        if h + 16 < tail:
+                            _prefetch(mark, queue[h + 16])
                         mark[np.int64(queue[h])] = 3
     return _keep_marked(mark, nx, 3)
 

@@ -184,7 +184,7 @@ def check_memory(shape, n_pore: int) -> None:
     """Raise a one-line :class:`InputError` if :func:`memory_needed` exceeds the available memory.
 
     Also honours the address-space limit (``ulimit -v``). The CLI calls it before filtering the
-    image (whose cluster labelling needs 5 bytes per voxel, less than the extraction).
+    image (whose cluster flood needs about 3 bytes per voxel, less than the extraction).
     """
     need = memory_needed(shape, n_pore)
     avail = available_memory()
@@ -396,7 +396,8 @@ def _pore_centres(dt2, max_d2: int, min_radius: float, extent: float, merge_rati
     """
     sqrt_tab = np.sqrt(np.arange(max_d2 + 1, dtype=np.float64))
     min_dt2 = max(1, math.ceil(min_radius * min_radius - 1e-9))
-    labels = np.full(dt2.shape, -1, np.int32)
+    labels = np.empty(dt2.shape, np.int32)
+    kern._fill(labels, -1)
     offsets = kern.ball_offsets(BALL_TEST_REACH)
     off_class, reach2 = kern.ball_reach_table(offsets, max_d2)
     like = np.empty(0, np.int32 if dt2.size < np.iinfo(np.int32).max else np.int64)
@@ -411,7 +412,7 @@ def _pore_centres(dt2, max_d2: int, min_radius: float, extent: float, merge_rati
     master, n_kept = kern._families(dt2, balls, sqrt_tab, extent, merge_ratio, labels, float(BALL_CORE))
     centre_idx = balls[master == np.arange(balls.size, dtype=np.int32)]
     laps("families")
-    labels.fill(-1)
+    kern._fill(labels, -1)
     return centre_idx, labels, {"candidates": int(n_cand), "balls": int(balls.size), "scanned": int(n_kept)}
 
 
