@@ -41,10 +41,11 @@ counted twice (about 95 %), and the grid-convergence index of the pooled sequenc
 faces (no-slip walls the whole image does not have) and their size; the estimator is validated
 against whole-image extrapolation where that fits (docs/stokes.md, "Sampled defect correction").
 
-**Known bias.** On every image validated the sampled estimate is high, not low: +3-4 % on a 48³
-Berea crop (16³-24³ blocks; the cut faces, about ∝ 1/b), +10 % on a blob medium where only half
-the blocks carry flow by themselves (the blocks miss the narrow necks between well-connected
-regions, whose correction is the largest). Read it as an upper estimate of the converged k.
+**Known bias.** On the images validated the sampled estimate is high or about right, never low by
+more than 1 %: +3-4 % on a 48³ Berea crop (16³-24³ blocks), +5.4, -0.6 and +7.1 % on three 80³
+Berea crops with 40³ blocks (at p = 1; not ∝ 1/b: it depends on the throats the cuts close), +10 % on a
+blob medium where only half the blocks carry flow by themselves (the blocks miss the narrow necks
+between well-connected regions, whose correction is the largest). Read it as an upper estimate.
 """
 
 from __future__ import annotations
