@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from porefsi.case.config import Case, case_to_dict, load_case, smoke_case
+from porefsi.coupling.solid_step import NEWTON_RTOL
 
 CASES = Path(__file__).resolve().parent.parent / "cases"
 CASE_FILES = sorted(CASES.glob("*/case.toml"))
@@ -284,11 +285,12 @@ def _check_speed_accuracy(saved, out):
     assert "baseline" in runs and all(r["status"] == "ok" for r in runs.values())
     assert all(r["cpu_s"] > 0 for r in runs.values())
     # the default (consistent traction) run is closer to the reference than the zero field
-    # (measured 0.53); TDG equals the static solid at rock stiffness (measured 7e-16); the hull row is
-    # the paper's inconsistent interface, further from the reference (measured 0.91)
+    # (measured 0.53); TDG equals the static solid at rock stiffness to the static stepper's Newton
+    # tolerance (measured 7e-16 at rtol 1e-8, 1.0e-8 at the default 1e-6); the hull row is the paper's
+    # inconsistent interface, further from the reference (measured 0.91)
     assert 0.0 < runs["baseline"]["err_field"] < 1.0
     if "tdg" in runs:
-        assert runs["tdg"]["diff_vs_baseline"] < 1e-9
+        assert runs["tdg"]["diff_vs_baseline"] < 0.1 * NEWTON_RTOL
     if "hull" in runs:
         assert runs["baseline"]["err_field"] < runs["hull"]["err_field"] < 5.0
     assert saved["recommendation"]["front"] and saved["recommendation"]["recommended"]["name"] in runs
