@@ -23,6 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 import numpy as np  # noqa: E402
 from _data import data_file  # noqa: E402
+from bench_extract_resolution import upsample  # noqa: E402
 
 import porefsi  # noqa: E402
 from porefsi.image import VoxelImage  # noqa: E402
@@ -31,9 +32,7 @@ from porefsi.image import VoxelImage  # noqa: E402
 def run(path: str, f: int) -> dict:
     """Upsample, extract, solve; the record (CPU s, µs/voxel, pores, k per axis in mD, peak GiB)."""
     src = porefsi.read_image(path)
-    ph = src.phases
-    if f > 1:
-        ph = np.repeat(np.repeat(np.repeat(ph, f, 0), f, 1), f, 2)
+    ph = upsample(src.phases, f) if f > 1 else src.phases
     img = VoxelImage(ph, src.voxel_size / f)
     n = int(ph.size)
     del ph

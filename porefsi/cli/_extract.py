@@ -179,7 +179,7 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
     t0 = time.perf_counter()
     image = image_from_args(args, source)
     t_read = time.perf_counter() - t0
-    porosity = _porosity(image)
+    porosity = image.porosity
     if porosity == 0.0:
         raise InputError(
             f"image {source or _SAMPLE} has no pore voxels (all solid); porefsi reads 1 as pore: "
@@ -195,7 +195,7 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
         if removed == 1.0:
             percolating_cluster(image, axis)  # raises the NetworkError that counts the clusters
     del image
-    connected_porosity, voxel_size = _porosity(work), work.voxel_size
+    connected_porosity, voxel_size = work.porosity, work.voxel_size
     holder = [work]
     del work  # handed over: the extraction frees the image once its distance map is computed (1 byte/voxel)
     t1 = time.perf_counter()
@@ -224,13 +224,6 @@ def _extract_from_image(args, source, axis, *, keep_isolated: bool) -> dict:
         "seconds_extract": t_ext,
     }
 
-
-def _porosity(image) -> float:
-    """``image.porosity`` from a count instead of a float mean (~8x faster on a 1000^3 image).
-
-    The float64 sum of 0/1 values is the exact count, so the quotient is the same float.
-    """
-    return int(np.count_nonzero(image.phases)) / image.phases.size
 
 
 def network_from_args(args: argparse.Namespace) -> Network:

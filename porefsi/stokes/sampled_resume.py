@@ -39,6 +39,7 @@ import numpy as np
 
 from porefsi.errors import InputError
 from porefsi.image.voxel_image import AXES, VoxelImage, axis_index
+from porefsi.io.results import atomic_write_text
 from porefsi.stokes.permeability import StokesOptions, StokesResult
 from porefsi.stokes.sampled import (
     DEFAULT_BLOCKS,
@@ -136,12 +137,7 @@ class ResumeFile:
         """Write the header (temporary file, then rename) unless the file exists."""
         if self.path.exists():
             return
-        tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(json.dumps(self.header) + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, self.path)
+        atomic_write_text(self.path, json.dumps(self.header) + "\n")
         self._good_size = None
 
     def native(self) -> StokesResult | None:
